@@ -1,0 +1,16 @@
+"""The Gymnasium environment, its rewards and its registered ids."""
+
+from pianist.env.config import EnvConfig, RewardWeights, make_config
+from pianist.env.piano_env import PianoEnv, SimulationUnstableError
+from pianist.env.registration import register_envs
+
+__all__ = [
+    "EnvConfig",
+    "PianoEnv",
+    "RewardWeights",
+    "SimulationUnstableError",
+    "make_config",
+    "register_envs",
+]
+
+register_envs()

@@ -1,0 +1,96 @@
+"""Environment configuration: frozen dataclasses whose defaults are the paper's settings."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from pianist.sim import constants as C
+from pianist.sim.hands import HandOptions
+from pianist.sim.scene import SceneOptions
+
+REWARD_TERMS = ("key_press", "fingering", "energy", "sustain", "forearm")
+
+
+@dataclass(frozen=True)
+class RewardWeights:
+    """Weight of each raw term in the total reward (energy's raw value is a power in W)."""
+
+    key_press: float = 1.0
+    fingering: float = 1.0
+    energy: float = -5e-3
+    sustain: float = 1.0
+    forearm: float = 1.0
+
+    def as_dict(self) -> dict[str, float]:
+        return {name: getattr(self, name) for name in REWARD_TERMS}
+
+
+@dataclass(frozen=True)
+class EnvConfig:
+    """Everything that defines a piano task apart from the song.
+
+    The scene (hands, physics preset) lives in ``scene``; see :class:`SceneOptions` and
+    :class:`HandOptions` for their fields.
+    """
+
+    lookahead: int = 10
+    """Future goal frames in the observation beyond the current one (L)."""
+    control_timestep_s: float = C.CONTROL_TIMESTEP_S
+    wrong_press_termination: bool = False
+    """End the episode (terminated) as soon as a key that is not due sounds."""
+    randomize_hand_positions: bool = False
+    """Start each forearm up to 5 cm along the keyboard from its home, drawn from the seed."""
+    scene: SceneOptions = field(default_factory=SceneOptions)
+    rewards: RewardWeights = field(default_factory=RewardWeights)
+
+    def __post_init__(self) -> None:
+        if self.lookahead < 0:
+            raise ValueError(f"lookahead must be >= 0, not {self.lookahead}")
+        timestep = self.scene.physics_preset.timestep_s
+        ratio = self.control_timestep_s / timestep
+        if self.control_timestep_s <= 0 or abs(ratio - round(ratio)) > 1e-6 or round(ratio) < 1:
+            raise ValueError(
+                f"control timestep {self.control_timestep_s} s must be a positive multiple of "
+                f"the physics timestep {timestep} s"
+            )
+
+    @property
+    def substeps(self) -> int:
+        """Physics steps per control step."""
+        return round(self.control_timestep_s / self.scene.physics_preset.timestep_s)
+
+
+def make_config(
+    *,
+    lookahead: int = 10,
+    hands: str = "both",
+    physics: str = "faithful",
+    reduced_action_space: bool = True,
+    primitive_fingertip_collisions: bool = True,
+    gravity_compensation: bool = True,
+    hand_collisions: bool = True,
+    forearm_dofs: tuple[str, ...] = ("tx", "ty"),
+    wrong_press_termination: bool = False,
+    randomize_hand_positions: bool = False,
+    control_timestep_s: float = C.CONTROL_TIMESTEP_S,
+    rewards: RewardWeights | None = None,
+) -> EnvConfig:
+    """Flat keyword options -> :class:`EnvConfig` (what ``pianist.make_env`` accepts)."""
+    return EnvConfig(
+        lookahead=lookahead,
+        control_timestep_s=control_timestep_s,
+        wrong_press_termination=wrong_press_termination,
+        randomize_hand_positions=randomize_hand_positions,
+        scene=SceneOptions(
+            hands=hands,  # type: ignore[arg-type]
+            physics=physics,
+            hand=HandOptions(
+                reduced_action_space=reduced_action_space,
+                primitive_fingertip_collisions=primitive_fingertip_collisions,
+                gravity_compensation=gravity_compensation,
+                hand_collisions=hand_collisions,
+                forearm_dofs=tuple(forearm_dofs),
+            ),
+        ),
+        rewards=rewards or RewardWeights(),
+    )

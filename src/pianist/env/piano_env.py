@@ -1,0 +1,344 @@
+"""The Gymnasium environment: two Shadow hands play one song on the 88-key piano.
+
+Observation (a ``gymnasium.spaces.Dict``; every entry float32). L is the lookahead.
+
+==================  ============  ======  ===================================================
+key                 shape         unit    meaning
+==================  ============  ======  ===================================================
+``goal``            (L+1, 89)     0/1     keys due (88) and sustain (1) at frames t..t+L,
+                                          zero past the end of the song
+``fingers_due``     (10,)         0/1     fingers due at frame t: 0-4 right thumb..little,
+                                          5-9 left thumb..little
+``piano_keys``      (88,)         [0, 1]  key depression, 0 up, 1 at the bottom of travel
+``piano_sustain``   (1,)          0/1     sustain pedal state
+``rh_joints``       (23,)/(26,)   rad, m  right hand joint positions, forearm slides first
+``lh_joints``       (23,)/(26,)   rad, m  the same for the left hand
+``rh_fingertips``   (5, 3)        m       fingertip positions, thumb..little (world frame)
+``lh_fingertips``   (5, 3)        m       the same for the left hand
+``rh_forearm``      (3,)          m       forearm root position (world frame)
+``lh_forearm``      (3,)          m       the same for the left hand
+==================  ============  ======  ===================================================
+
+The joint count is 23 with the reduced action space (21 hand joints + 2 forearm slides) and
+26 without; extra forearm DoFs add to it. One-hand scenes have only that hand's entries.
+
+Action: a vector in [-1, 1]^(nu + 1): one entry per actuator (right hand then left, each hand's
+finger/wrist actuators then its forearm actuators; see :attr:`PianoEnv.action_names`), mapped
+linearly onto the actuator's control range, then the sustain pedal (pressed when >= 0).
+
+Step t applies the action for one control step (10 physics substeps by default), then scores
+the keys sounding at the end of the step against goal frame t. The episode has one step per
+goal frame and ends *truncated* after the last; with ``wrong_press_termination`` it ends
+*terminated* at the first step where a key that is not due sounds.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+
+from pianist.env import rewards as R
+from pianist.env.config import REWARD_TERMS, EnvConfig, make_config
+from pianist.env.events import EMPTY_EVENTS, key_events, sustain_event
+from pianist.music import GoalFrames, Song, goal_frames, load_song
+from pianist.sim import constants as C
+from pianist.sim.scene import Scene, build_scene
+
+HAND_OBS_PREFIX = {"right": "rh", "left": "lh"}
+FORWARD_SIDES = ("right", "left")
+
+
+class SimulationUnstableError(RuntimeError):
+    """MuJoCo reported a diverging simulation (NaN, Inf or huge accelerations)."""
+
+
+def resolve_goal(song: Song | GoalFrames | str | Path, dt: float) -> tuple[GoalFrames, Song | None]:
+    """A song name, file, Song or GoalFrames -> goal frames at control step ``dt``."""
+    if isinstance(song, GoalFrames):
+        if abs(song.dt - dt) > 1e-9:
+            raise ValueError(f"goal frames at dt {song.dt} s do not match the control step {dt} s")
+        return song, None
+    resolved = song if isinstance(song, Song) else load_song(song)
+    return goal_frames(resolved, dt=dt), resolved
+
+
+class PianoEnv(gym.Env):
+    """Play a song on the piano. See the module docstring for observations and actions."""
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": round(1 / C.CONTROL_TIMESTEP_S)}
+
+    def __init__(
+        self,
+        song: Song | GoalFrames | str | Path,
+        config: EnvConfig | None = None,
+        render_mode: str | None = None,
+        render_size: tuple[int, int] = (480, 640),
+        render_camera: str = "closeup",
+        **options: Any,
+    ) -> None:
+        """
+        Args:
+            song: a built-in song name, a MIDI or PIG file, a Song, or GoalFrames.
+            config: the full configuration; or give flat ``options`` instead
+                (see :func:`pianist.env.config.make_config`), not both.
+            render_mode: None or "rgb_array".
+            render_size: (height, width) of rendered frames in pixels.
+            render_camera: name of the camera used by :meth:`render`.
+        """
+        if config is not None and options:
+            raise TypeError("pass either config or keyword options, not both")
+        self.config = config if config is not None else make_config(**options)
+        if render_mode not in (None, *self.metadata["render_modes"]):
+            raise ValueError(f"unknown render_mode {render_mode!r}; use None or 'rgb_array'")
+        self.render_mode = render_mode
+        self.metadata = {**self.metadata, "render_fps": round(1 / self.config.control_timestep_s)}
+
+        self.goal, self.song = resolve_goal(song, self.config.control_timestep_s)
+        self.scene: Scene = build_scene(self.config.scene)
+        self.model: mujoco.MjModel = self.scene.model
+        self.data = mujoco.MjData(self.model)
+        self._render_size = render_size
+        self._render_camera = render_camera
+        self._renderer: Any = None
+        if render_camera not in {self.model.camera(i).name for i in range(self.model.ncam)}:
+            names = sorted(self.model.camera(i).name for i in range(self.model.ncam))
+            raise ValueError(f"unknown camera {render_camera!r}; choose from {names}")
+        self._setup_indices()
+        self._setup_goal()
+        self._setup_spaces()
+        self._t = 0
+
+    # ----------------------------------------------------------------------------- set-up
+
+    def _setup_indices(self) -> None:
+        model, scene = self.model, self.scene
+        keys = scene.key_qpos
+        # Keys are built first, so their qpos is one contiguous block: a slice is a view.
+        if np.array_equal(keys, np.arange(keys[0], keys[0] + C.NUM_KEYS)):
+            self._key_slice: slice | np.ndarray = slice(int(keys[0]), int(keys[0]) + C.NUM_KEYS)
+        else:
+            self._key_slice = keys
+        self._key_max = scene.key_max_angle_rad
+        self._key_threshold = self._key_max - C.KEY_ACTIVATION_THRESHOLD_RAD
+        self._ctrl_low = model.actuator_ctrlrange[:, 0].copy()
+        self._ctrl_half = (model.actuator_ctrlrange[:, 1] - model.actuator_ctrlrange[:, 0]) / 2
+        # Fingertip site of each of the 10 fingers, -1 when that hand is absent.
+        self._finger_sites = np.full(10, -1, dtype=np.intp)
+        for hand in scene.hands:
+            offset = 0 if hand.side == "right" else 5
+            self._finger_sites[offset : offset + 5] = hand.fingertip_sites
+        self._forearm_pair = None
+        if len(scene.hands) == 2:
+            self._forearm_pair = {scene.hands[0].forearm_body, scene.hands[1].forearm_body}
+        self._tx_joint = {
+            h.side: model.joint(f"{C.HAND_PREFIX[h.side]}forearm_tx").id
+            for h in scene.hands
+            if f"{C.HAND_PREFIX[h.side]}forearm_tx"
+            in {model.joint(j).name for j in range(model.njnt)}
+        }
+        self._bad_qacc = int(mujoco.mjtWarning.mjWARN_BADQACC)
+
+    def _setup_goal(self) -> None:
+        goal, lookahead = self.goal, self.config.lookahead
+        T = goal.num_frames
+        padded = np.zeros((T + lookahead, C.NUM_KEYS + 1), dtype=np.float32)
+        padded[:T, : C.NUM_KEYS] = goal.keys
+        padded[:T, C.NUM_KEYS] = goal.sustain
+        self._goal_padded = padded
+        self._finger_mask = goal.finger_mask.astype(np.float32)
+
+    def _setup_spaces(self) -> None:
+        L = self.config.lookahead
+        unit = {"low": 0.0, "high": 1.0, "dtype": np.float32}
+        # Generous finite bounds (joint angles and slides in rad/m, positions in m): the
+        # instability check raises long before a state could leave them.
+        joints = {"low": -2 * np.pi, "high": 2 * np.pi, "dtype": np.float32}
+        position = {"low": -5.0, "high": 5.0, "dtype": np.float32}
+        spaces: dict[str, gym.spaces.Box] = {
+            "goal": gym.spaces.Box(shape=(L + 1, C.NUM_KEYS + 1), **unit),
+            "fingers_due": gym.spaces.Box(shape=(10,), **unit),
+            "piano_keys": gym.spaces.Box(shape=(C.NUM_KEYS,), **unit),
+            "piano_sustain": gym.spaces.Box(shape=(1,), **unit),
+        }
+        for hand in self.scene.hands:
+            p = HAND_OBS_PREFIX[hand.side]
+            spaces[f"{p}_joints"] = gym.spaces.Box(shape=(len(hand.joint_qpos),), **joints)
+            spaces[f"{p}_fingertips"] = gym.spaces.Box(shape=(5, 3), **position)
+            spaces[f"{p}_forearm"] = gym.spaces.Box(shape=(3,), **position)
+        self.observation_space = gym.spaces.Dict(spaces)
+        self.action_space = gym.spaces.Box(-1.0, 1.0, shape=(self.model.nu + 1,), dtype=np.float32)
+
+    # ----------------------------------------------------------------------------- API
+
+    @property
+    def action_names(self) -> list[str]:
+        """Name of each action dimension: actuator names, then ``sustain``."""
+        return [self.model.actuator(i).name for i in range(self.model.nu)] + ["sustain"]
+
+    @property
+    def num_steps(self) -> int:
+        """Steps in a full episode (one per goal frame)."""
+        return self.goal.num_frames
+
+    @property
+    def step_index(self) -> int:
+        """Index of the goal frame the next step will play."""
+        return self._t
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+        super().reset(seed=seed)
+        model, data = self.model, self.data
+        mujoco.mj_resetData(model, data)
+        if self.config.randomize_hand_positions:
+            for joint in self._tx_joint.values():
+                adr = model.jnt_qposadr[joint]
+                low, high = model.jnt_range[joint]
+                data.qpos[adr] = np.clip(self.np_random.uniform(-0.05, 0.05), low, high)
+        mujoco.mj_forward(model, data)
+        # Hold the initial pose: each position servo's target is its current length.
+        data.ctrl[:] = np.clip(data.actuator_length, *model.actuator_ctrlrange.T)
+        self._t = 0
+        self._active = np.zeros(C.NUM_KEYS, dtype=bool)
+        self._sustain = False
+        self._substep_active = np.zeros((self.config.substeps, C.NUM_KEYS), dtype=bool)
+        self._substep_time = np.zeros(self.config.substeps)
+        self._bad_qacc_seen = data.warning[self._bad_qacc].number
+        info = {"step": 0, "active_keys": self._active.copy(), "sustain": False}
+        return self._observation(), info
+
+    def step(
+        self, action: np.ndarray
+    ) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
+        if self._t >= self.goal.num_frames:
+            raise RuntimeError("the episode is over: call reset()")
+        model, data = self.model, self.data
+        action = np.asarray(action, dtype=np.float64)
+        if action.shape != (model.nu + 1,):
+            raise ValueError(f"action must have shape ({model.nu + 1},), not {action.shape}")
+        if not np.all(np.isfinite(action)):
+            raise ValueError("action contains NaN or Inf")
+        action = np.clip(action, -1.0, 1.0)
+        data.ctrl[:] = self._ctrl_low + (action[:-1] + 1.0) * self._ctrl_half
+
+        events = EMPTY_EVENTS
+        sustain = bool(action[-1] >= 0.0)  # the pedal value (a + 1) / 2 reaches 0.5
+        if sustain != self._sustain:
+            events = sustain_event(data.time, sustain)
+        self._sustain = sustain
+        data.userdata[0] = float(sustain)
+
+        key_slice, threshold = self._key_slice, self._key_threshold
+        for i in range(self.config.substeps):
+            mujoco.mj_step(model, data)
+            np.greater_equal(data.qpos[key_slice], threshold, out=self._substep_active[i])
+            self._substep_time[i] = data.time
+        if (
+            data.warning[self._bad_qacc].number != self._bad_qacc_seen
+            or not np.isfinite(data.qpos).all()
+        ):
+            raise SimulationUnstableError(
+                f"the simulation diverged at t = {data.time:.3f} s (step {self._t}); "
+                "MuJoCo reset the state"
+            )
+        # After mj_step, derived positions lag qpos by one substep: bring them up to date.
+        mujoco.mj_kinematics(model, data)
+
+        key_ev, self._active = key_events(self._active, self._substep_active, self._substep_time)
+        if key_ev.size:
+            events = np.concatenate([events, key_ev]) if events.size else key_ev
+
+        t = self._t
+        terms = self._reward_terms(t)
+        weights = self.config.rewards
+        reward = sum(getattr(weights, name) * terms[name] for name in REWARD_TERMS)
+        due = self.goal.keys[t]
+        wrong = bool((self._active & ~due).any())
+        self._t = t + 1
+        terminated = self.config.wrong_press_termination and wrong
+        truncated = self._t >= self.goal.num_frames and not terminated
+        info = {
+            "step": self._t,
+            "reward_terms": terms,
+            "active_keys": self._active.copy(),
+            "sustain": sustain,
+            "goal_keys": due,
+            "goal_sustain": bool(self.goal.sustain[t]),
+            "note_events": events,
+        }
+        return self._observation(), float(reward), terminated, truncated, info
+
+    def render(self) -> np.ndarray | None:
+        if self.render_mode != "rgb_array":
+            return None
+        if self._renderer is None:
+            height, width = self._render_size
+            self._renderer = mujoco.Renderer(self.model, height=height, width=width)
+        self._renderer.update_scene(self.data, camera=self._render_camera)
+        return self._renderer.render()
+
+    def close(self) -> None:
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+
+    # ----------------------------------------------------------------------------- internals
+
+    def key_state(self) -> np.ndarray:
+        """(88,) key depression in [0, 1]."""
+        return np.clip(self.data.qpos[self._key_slice], 0.0, self._key_max) / self._key_max
+
+    def _reward_terms(self, t: int) -> dict[str, float]:
+        data = self.data
+        due = self.goal.keys[t]
+        fingers = self.goal.fingers[t]
+        assigned = due & (fingers >= 0)
+        keys = np.flatnonzero(assigned)
+        sites = self._finger_sites[fingers[keys]]
+        present = sites >= 0  # fingers of a hand that is not in the scene are not scored
+        fingering = R.fingering_reward(
+            data.site_xpos[sites[present]], data.site_xpos[self.scene.key_sites[keys[present]]]
+        )
+        return {
+            "key_press": R.key_press_reward(self.key_state(), due, self._active),
+            "fingering": fingering,
+            "energy": R.energy(data.actuator_force, data.actuator_velocity),
+            "sustain": R.sustain_reward(bool(self.goal.sustain[t]), self._sustain),
+            "forearm": R.forearm_reward(self._forearms_touch()),
+        }
+
+    def _forearms_touch(self) -> bool:
+        if self._forearm_pair is None or self.data.ncon == 0:
+            return False
+        body = self.model.geom_bodyid[self.data.contact.geom]  # (ncon, 2)
+        first, second = self._forearm_pair
+        return bool(
+            np.any(
+                ((body[:, 0] == first) & (body[:, 1] == second))
+                | ((body[:, 0] == second) & (body[:, 1] == first))
+            )
+        )
+
+    def _observation(self) -> dict[str, np.ndarray]:
+        data, t, L = self.data, self._t, self.config.lookahead
+        obs: dict[str, np.ndarray] = {
+            "goal": self._goal_padded[t : t + L + 1].copy(),
+            "fingers_due": (
+                self._finger_mask[t].copy()
+                if t < self.goal.num_frames
+                else np.zeros(10, np.float32)
+            ),
+            "piano_keys": self.key_state().astype(np.float32),
+            "piano_sustain": np.array([float(self._sustain)], dtype=np.float32),
+        }
+        for hand in self.scene.hands:
+            p = HAND_OBS_PREFIX[hand.side]
+            obs[f"{p}_joints"] = data.qpos[hand.joint_qpos].astype(np.float32)
+            obs[f"{p}_fingertips"] = data.site_xpos[hand.fingertip_sites].astype(np.float32)
+            obs[f"{p}_forearm"] = data.xpos[hand.forearm_body].astype(np.float32)
+        return obs

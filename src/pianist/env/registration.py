@@ -1,0 +1,34 @@
+"""Gymnasium ids: ``pianist/<song>-v0`` for every built-in song.
+
+Registering only adds entries to Gymnasium's registry (no model is built until ``gym.make``).
+"""
+
+from __future__ import annotations
+
+import gymnasium as gym
+
+from pianist.music import list_songs
+
+NAMESPACE = "pianist"
+VERSION = 0
+
+
+def env_id(song: str) -> str:
+    """Gymnasium id of a built-in song, e.g. ``pianist/twinkle-twinkle-v0``."""
+    return f"{NAMESPACE}/{song}-v{VERSION}"
+
+
+def register_envs() -> list[str]:
+    """Register every built-in song (idempotent) and return the ids."""
+    ids = []
+    for song in list_songs():
+        name = env_id(song)
+        if name not in gym.registry:
+            gym.register(
+                id=name,
+                entry_point="pianist.env.piano_env:PianoEnv",
+                kwargs={"song": song},
+                disable_env_checker=False,
+            )
+        ids.append(name)
+    return ids

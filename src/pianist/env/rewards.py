@@ -1,0 +1,91 @@
+"""Reward terms as small pure functions (facts page, section 3).
+
+Each returns a float; :func:`pianist.env.piano_env.PianoEnv` weights and sums them and reports
+every raw term in ``info["reward_terms"]``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+KEY_PRESS_BOUNDS = (0.0, 0.05)
+KEY_PRESS_MARGIN = 0.5
+FINGERING_BOUNDS_M = (0.0, 0.01)
+FINGERING_MARGIN_M = 0.1
+SUSTAIN_BOUNDS = (0.0, 0.05)
+SUSTAIN_MARGIN = 0.5
+FOREARM_CLEAR_REWARD = 0.5
+# dm_control's convention: the Gaussian falls to this value one margin outside the bounds.
+VALUE_AT_MARGIN = 0.1
+_GAUSSIAN_SCALE = math.sqrt(-2.0 * math.log(VALUE_AT_MARGIN))
+
+
+def tolerance(x: np.ndarray | float, bounds: tuple[float, float], margin: float) -> np.ndarray:
+    """1 inside ``bounds``, a Gaussian falling to 0.1 at ``margin`` outside them.
+
+    Args:
+        x: values, any shape.
+        bounds: (lower, upper), lower <= upper.
+        margin: distance outside the bounds at which the value is 0.1; 0 gives a hard step.
+    Returns:
+        Array of x's shape with values in [0, 1].
+    """
+    x = np.asarray(x, dtype=float)
+    lower, upper = bounds
+    inside = (x >= lower) & (x <= upper)
+    if margin <= 0:
+        return inside.astype(float)
+    distance = np.where(x < lower, lower - x, x - upper) / margin
+    return np.where(inside, 1.0, np.exp(-0.5 * (distance * _GAUSSIAN_SCALE) ** 2))
+
+
+def key_press_reward(key_state: np.ndarray, due: np.ndarray, active: np.ndarray) -> float:
+    """Press the due keys, and sound nothing else.
+
+    Args:
+        key_state: (88,) normalised key depression in [0, 1].
+        due: (88,) bool, keys the goal wants sounding this step.
+        active: (88,) bool, keys sounding now.
+    Returns:
+        0.5 * mean over due keys of tolerance(1 - state) (0 when nothing is due) plus 0.5 when
+        no key that is not due sounds: a constant penalty, whatever the number of wrong keys.
+    """
+    pressed = 0.0
+    if due.any():
+        pressed = float(tolerance(1.0 - key_state[due], KEY_PRESS_BOUNDS, KEY_PRESS_MARGIN).mean())
+    no_wrong = not bool((active & ~due).any())
+    return 0.5 * pressed + 0.5 * float(no_wrong)
+
+
+def fingering_reward(fingertip_pos: np.ndarray, key_target_pos: np.ndarray) -> float:
+    """Bring each assigned fingertip to its key.
+
+    Args:
+        fingertip_pos: (n, 3) m, the fingertip assigned to each due key.
+        key_target_pos: (n, 3) m, the strike point of each of those keys.
+    Returns:
+        Mean tolerance of the distances (0 when n = 0).
+    """
+    if len(fingertip_pos) == 0:
+        return 0.0
+    distance = np.linalg.norm(fingertip_pos - key_target_pos, axis=-1)
+    return float(tolerance(distance, FINGERING_BOUNDS_M, FINGERING_MARGIN_M).mean())
+
+
+def energy(actuator_force: np.ndarray, actuator_velocity: np.ndarray) -> float:
+    """Mechanical power spent by the actuators, sum |force| |velocity| (W); weight it < 0."""
+    return float(np.abs(actuator_force) @ np.abs(actuator_velocity))
+
+
+def sustain_reward(goal_sustain: bool, sustain_active: bool) -> float:
+    """1 when the pedal matches the goal, 0.1**(1.9**2) ~ 0 otherwise."""
+    return float(
+        tolerance(float(goal_sustain) - float(sustain_active), SUSTAIN_BOUNDS, SUSTAIN_MARGIN)
+    )
+
+
+def forearm_reward(forearms_touch: bool) -> float:
+    """0.5 while the two forearms are apart."""
+    return 0.0 if forearms_touch else FOREARM_CLEAR_REWARD

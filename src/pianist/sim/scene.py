@@ -1,0 +1,240 @@
+"""The full scene: piano, one or two hands, lights and cameras, and the physics presets.
+
+:func:`build_scene` returns a :class:`Scene` holding the compiled ``mujoco.MjModel`` and the
+index arrays the environment needs, so that nothing downstream looks names up at step time.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal
+
+import mujoco
+import numpy as np
+
+from pianist.sim import constants as C
+from pianist.sim.hands import PIANO_BIT, HandOptions, Side, attach_hand, is_fingertip_body
+from pianist.sim.piano import add_piano, key_name
+
+HandsSpec = Literal["both", "right", "left"]
+
+
+@dataclass(frozen=True)
+class PhysicsPreset:
+    """Simulator settings. ``faithful`` reproduces the original; ``fast`` trades fidelity.
+
+    The speed figure after each fast option is cumulative physics steps/s of the two-hand scene
+    on the project's 2-core machine (facts page section 7; ``benchmarks/bench_env.py``
+    measures the presets as built here).
+    """
+
+    name: str
+    timestep_s: float = C.PHYSICS_TIMESTEP_S
+    solver: int = int(mujoco.mjtSolver.mjSOL_NEWTON)
+    iterations: int = 100
+    ls_iterations: int = 50
+    cone: int = int(mujoco.mjtCone.mjCONE_PYRAMIDAL)
+    impratio: float = 10.0
+    integrator: int = int(mujoco.mjtIntegrator.mjINT_EULER)
+    sleep: bool = False
+    """Sleeping islands (``mjENBL_SLEEP``): resting keys stop being integrated (~5.0k -> 6.3k)."""
+    hand_frictionloss: bool = True
+    """Joint dry friction of the hands; each adds a constraint row (off: ~7.4k)."""
+    fingertips_only_touch_keys: bool = False
+    """Only the distal phalanges collide with the piano (~8.9-9.5k)."""
+
+
+FAITHFUL = PhysicsPreset(name="faithful")
+FAST = PhysicsPreset(
+    name="fast",
+    iterations=20,
+    ls_iterations=10,
+    sleep=True,
+    hand_frictionloss=False,
+    fingertips_only_touch_keys=True,
+)
+PHYSICS_PRESETS: dict[str, PhysicsPreset] = {p.name: p for p in (FAITHFUL, FAST)}
+
+
+@dataclass(frozen=True)
+class SceneOptions:
+    """Everything that changes the compiled model."""
+
+    hands: HandsSpec = "both"
+    hand: HandOptions = field(default_factory=HandOptions)
+    physics: str | PhysicsPreset = "faithful"
+
+    def __post_init__(self) -> None:
+        if self.hands not in ("both", "right", "left"):
+            raise ValueError(f"hands must be 'both', 'right' or 'left', not {self.hands!r}")
+        if isinstance(self.physics, str) and self.physics not in PHYSICS_PRESETS:
+            raise ValueError(
+                f"unknown physics preset {self.physics!r}; choose from {sorted(PHYSICS_PRESETS)}"
+            )
+
+    @property
+    def physics_preset(self) -> PhysicsPreset:
+        if isinstance(self.physics, PhysicsPreset):
+            return self.physics
+        return PHYSICS_PRESETS[self.physics]
+
+    @property
+    def sides(self) -> tuple[Side, ...]:
+        return ("right", "left") if self.hands == "both" else (self.hands,)
+
+
+@dataclass(frozen=True)
+class HandIndex:
+    """Addresses of one hand's elements in the compiled model."""
+
+    side: Side
+    joint_qpos: np.ndarray  # (n,) qpos addresses of the hand's joints, forearm joints included
+    actuators: np.ndarray  # (m,) actuator ids, contiguous
+    fingertip_sites: np.ndarray  # (5,) site ids, thumb..little
+    forearm_body: int
+    forearm_geoms: np.ndarray  # collision geoms of the forearm body
+
+
+@dataclass(frozen=True)
+class Scene:
+    """A compiled scene and the index arrays into it."""
+
+    model: mujoco.MjModel
+    options: SceneOptions
+    key_qpos: np.ndarray  # (88,) qpos address of each key's hinge
+    key_dof: np.ndarray  # (88,) dof address of each key's hinge
+    key_geoms: np.ndarray  # (88,)
+    key_sites: np.ndarray  # (88,) fingertip targets
+    key_max_angle_rad: np.ndarray  # (88,)
+    hands: tuple[HandIndex, ...]
+
+    @property
+    def actuator_ranges(self) -> np.ndarray:
+        """(nu, 2) control range of every actuator."""
+        return self.model.actuator_ctrlrange
+
+    def hand(self, side: Side) -> HandIndex:
+        for h in self.hands:
+            if h.side == side:
+                return h
+        raise KeyError(f"the scene has no {side} hand")
+
+
+def build_spec(options: SceneOptions) -> mujoco.MjSpec:
+    """The uncompiled scene, for callers who want to edit it further."""
+    preset = options.physics_preset
+    spec = mujoco.MjSpec()
+    spec.modelname = "pianist"
+    spec.compiler.autolimits = True
+    spec.compiler.degree = False  # every angle in this package is in radians
+    spec.nuserdata = 1  # userdata[0] carries the sustain pedal state (0 or 1)
+    _set_physics(spec, preset)
+    _add_stage(spec)
+    add_piano(spec)
+    for side in options.sides:
+        attach_hand(spec, side, options.hand)
+    if not preset.hand_frictionloss:
+        for joint in spec.joints:
+            if joint.name.startswith(("rh/", "lh/")):
+                joint.frictionloss = 0.0
+    if preset.fingertips_only_touch_keys:
+        for geom in spec.geoms:
+            body = geom.parent
+            if body.name.startswith(("rh/", "lh/")) and not is_fingertip_body(body.name):
+                geom.contype &= ~PIANO_BIT
+    return spec
+
+
+def build_scene(options: SceneOptions | None = None) -> Scene:
+    """Compile the scene described by ``options`` (defaults: both hands, paper setup)."""
+    options = options or SceneOptions()
+    model = build_spec(options).compile()
+    return _index(model, options)
+
+
+def _set_physics(spec: mujoco.MjSpec, preset: PhysicsPreset) -> None:
+    opt = spec.option
+    opt.timestep = preset.timestep_s
+    opt.solver = preset.solver
+    opt.iterations = preset.iterations
+    opt.ls_iterations = preset.ls_iterations
+    opt.cone = preset.cone
+    opt.impratio = preset.impratio
+    opt.integrator = preset.integrator
+    # mujoco 4.0.0's sparse Cholesky diverges on this scene (facts page, section 8); the dense
+    # Jacobian is stable and no slower here.
+    opt.jacobian = mujoco.mjtJacobian.mjJAC_DENSE
+    if preset.sleep:
+        opt.enableflags |= mujoco.mjtEnableBit.mjENBL_SLEEP
+
+
+def _add_stage(spec: mujoco.MjSpec) -> None:
+    """Lights, floor-free backdrop and the named cameras of the original."""
+    spec.visual.headlight.ambient = (0.4, 0.4, 0.4)
+    spec.visual.headlight.diffuse = (0.6, 0.6, 0.6)
+    spec.visual.global_.offwidth = 1920
+    spec.visual.global_.offheight = 1080
+    world = spec.worldbody
+    world.add_light(name="top", pos=(0, 0, 1.5), dir=(0, 0, -1), castshadow=False)
+    cameras = {
+        # name: (position, point looked at)
+        "closeup": ((0.45, -0.0, 0.35), (0.0, 0.0, 0.05)),
+        "left": ((0.3, -0.9, 0.4), (0.0, -0.2, 0.05)),
+        "right": ((0.3, 0.9, 0.4), (0.0, 0.2, 0.05)),
+        "back": ((0.9, 0.0, 0.6), (0.0, 0.0, 0.0)),
+        "egocentric": ((0.55, 0.0, 0.5), (-0.05, 0.0, 0.0)),
+        "topdown": ((0.0, 0.0, 1.4), (0.0, 0.0, 0.0)),
+    }
+    for name, (pos, target) in cameras.items():
+        world.add_camera(name=name, pos=pos, xyaxes=_look_at(np.array(pos), np.array(target)))
+
+
+def _look_at(pos: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """Camera xyaxes (6,) looking from ``pos`` at ``target`` with world z up."""
+    forward = target - pos
+    forward /= np.linalg.norm(forward)
+    up = np.array([0.0, 0.0, 1.0])
+    if abs(forward @ up) > 0.99:  # looking straight down: let the image's up be -x (far side)
+        up = np.array([-1.0, 0.0, 0.0])
+    x = np.cross(forward, up)
+    x /= np.linalg.norm(x)
+    y = np.cross(x, forward)
+    return np.concatenate([x, y])
+
+
+def _index(model: mujoco.MjModel, options: SceneOptions) -> Scene:
+    key_joints = [model.joint(key_name(k)).id for k in range(C.NUM_KEYS)]
+    hands = []
+    for side in options.sides:
+        p = C.HAND_PREFIX[side]
+        joint_ids = [j for j in range(model.njnt) if model.joint(j).name.startswith(p)]
+        actuators = np.array(
+            [a for a in range(model.nu) if model.actuator(a).name.startswith(p)], dtype=np.intp
+        )
+        if actuators.size and not np.all(np.diff(actuators) == 1):
+            raise AssertionError(f"{side} hand actuators are not contiguous")
+        forearm = model.body(f"{p}forearm").id
+        hands.append(
+            HandIndex(
+                side=side,
+                joint_qpos=model.jnt_qposadr[joint_ids].astype(np.intp),
+                actuators=actuators,
+                fingertip_sites=np.array(
+                    [model.site(f"{p}{f}tip").id for f in C.FINGER_NAMES], dtype=np.intp
+                ),
+                forearm_body=forearm,
+                forearm_geoms=np.flatnonzero(
+                    (model.geom_bodyid == forearm) & (model.geom_contype != 0)
+                ),
+            )
+        )
+    return Scene(
+        model=model,
+        options=options,
+        key_qpos=model.jnt_qposadr[key_joints].astype(np.intp),
+        key_dof=model.jnt_dofadr[key_joints].astype(np.intp),
+        key_geoms=np.array([model.geom(key_name(k)).id for k in range(C.NUM_KEYS)], np.intp),
+        key_sites=np.array([model.site(key_name(k)).id for k in range(C.NUM_KEYS)], np.intp),
+        key_max_angle_rad=model.jnt_range[key_joints, 1].copy(),
+        hands=tuple(hands),
+    )

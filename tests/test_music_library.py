@@ -1,0 +1,155 @@
+"""Built-in songs and load_song."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from pianist.music import (
+    MidiFileError,
+    MusicError,
+    Song,
+    UnknownSongError,
+    get_song,
+    goal_frames,
+    list_songs,
+    load_song,
+    name_to_pitch,
+    song_description,
+    write_midi,
+    write_pig,
+)
+
+NAMES = [
+    "twinkle-twinkle",
+    "c-major-scale-right",
+    "c-major-scale-both",
+    "d-major-scale-right",
+    "d-major-scale-both",
+    "c-major-chords",
+]
+# name: (notes, duration s, hands, goal frames at 20 Hz)
+EXPECTED = {
+    "twinkle-twinkle": (14, 8.0, {"right"}, 161),
+    "c-major-scale-right": (15, 7.5, {"right"}, 151),
+    "c-major-scale-both": (30, 7.5, {"right", "left"}, 151),
+    "d-major-scale-right": (15, 7.5, {"right"}, 151),
+    "d-major-scale-both": (30, 7.5, {"right", "left"}, 151),
+    "c-major-chords": (16, 4.0, {"right", "left"}, 81),
+}
+
+
+def test_names_stable() -> None:
+    assert list_songs() == NAMES
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_builtin_song_shape(name: str) -> None:
+    song = get_song(name)
+    count, duration, hands, frames = EXPECTED[name]
+    assert song.name == name
+    assert song.num_notes == count
+    assert song.duration_s == pytest.approx(duration)
+    assert song.hands == hands
+    assert song.has_full_fingering and song.fingering_coverage == 1.0
+    assert goal_frames(song).num_frames == frames
+    for note in song.notes:  # fingers belong to the note's hand
+        assert (note.finger < 5) == (note.hand == "right")
+    assert song_description(name)
+    assert get_song(name) == song  # deterministic
+
+
+def _line(song: Song, hand: str) -> list[tuple[int, int | None]]:
+    return [(n.pitch, n.finger) for n in song.notes if n.hand == hand]
+
+
+def _pitches(names: str) -> list[int]:
+    return [name_to_pitch(n) for n in names.split()]
+
+
+def test_twinkle_melody() -> None:
+    song = get_song("twinkle-twinkle")
+    assert [n.pitch for n in song.notes] == _pitches("C4 C4 G4 G4 A4 A4 G4 F4 F4 E4 E4 D4 D4 C4")
+    lengths = [round(n.duration_s, 9) for n in song.notes]
+    assert lengths == [0.5] * 6 + [1.0] + [0.5] * 6 + [1.0]
+
+
+def test_c_major_scales() -> None:
+    right = _line(get_song("c-major-scale-right"), "right")
+    assert [p for p, _ in right] == _pitches("C4 D4 E4 F4 G4 A4 B4 C5 B4 A4 G4 F4 E4 D4 C4")
+    assert [f + 1 for _, f in right] == [1, 2, 3, 1, 2, 3, 4, 5, 4, 3, 2, 1, 3, 2, 1]
+    both = get_song("c-major-scale-both")
+    assert _line(both, "right") == right
+    left = _line(both, "left")
+    assert [p for p, _ in left] == [p - 12 for p, _ in right]
+    assert [f - 4 for _, f in left] == [5, 4, 3, 2, 1, 3, 2, 1, 2, 3, 1, 2, 3, 4, 5]
+    onsets = [n.onset_s for n in get_song("c-major-scale-right").notes]
+    assert onsets == pytest.approx([0.5 * i for i in range(15)])
+
+
+def test_d_major_has_f_sharp_and_c_sharp() -> None:
+    right = [p for p, _ in _line(get_song("d-major-scale-right"), "right")]
+    assert right[:8] == _pitches("D4 E4 F#4 G4 A4 B4 C#5 D5")
+    both = get_song("d-major-scale-both")
+    assert [p for p, _ in _line(both, "left")][:8] == _pitches("D3 E3 F#3 G3 A3 B3 C#4 D4")
+
+
+def test_chords_four_notes_per_second() -> None:
+    song = get_song("c-major-chords")
+    for second in range(4):
+        chord = [n for n in song.notes if n.onset_s == second]
+        assert len(chord) == 4
+        assert all(n.offset_s == second + 1 for n in chord)
+        assert sum(n.hand == "left" for n in chord) == 1
+    first = sorted(n.pitch for n in song.notes if n.onset_s == 0)
+    assert first == _pitches("C3 C4 E4 G4")
+
+
+def test_unknown_song_suggests_close_matches() -> None:
+    with pytest.raises(UnknownSongError) as info:
+        get_song("twinkle")
+    message = str(info.value)
+    assert "twinkle-twinkle" in message and "pianist songs" in message and "\n" not in message
+    assert isinstance(info.value, LookupError) and isinstance(info.value, ValueError)
+    with pytest.raises(UnknownSongError, match="c-major-scale"):
+        load_song("c-major-scale")
+    with pytest.raises(UnknownSongError):
+        song_description("nope")
+
+
+def test_load_song_dispatch(tmp_path: Path) -> None:
+    song = get_song("c-major-chords")
+    assert load_song(song) is song
+    assert load_song("twinkle-twinkle") == get_song("twinkle-twinkle")
+    midi_path = tmp_path / "chords.MID"
+    write_midi(song, midi_path)
+    from_midi = load_song(midi_path)
+    assert from_midi.num_notes == 16 and from_midi.fingering_coverage == 0.0
+    pig_path = tmp_path / "chords.txt"
+    write_pig(song, pig_path)
+    from_pig = load_song(str(pig_path))
+    assert [(n.pitch, n.finger) for n in from_pig.notes] == [
+        (n.pitch, n.finger) for n in song.notes
+    ]
+
+
+def test_load_song_out_of_range_passed_on(tmp_path: Path) -> None:
+    path = tmp_path / "wide.txt"
+    path.write_text("0\t0\t1\tC4\t64\t80\t0\t1\n1\t0\t1\tC9\t64\t80\t0\t5\n")
+    with pytest.raises(MusicError, match="outside"):
+        load_song(path)
+    assert load_song(path, out_of_range="drop").num_notes == 1
+
+
+def test_load_song_missing_path(tmp_path: Path) -> None:
+    for missing in (tmp_path / "gone.mid", str(tmp_path / "gone"), "songs/gone", "gone.midi"):
+        with pytest.raises(MidiFileError, match="file not found"):
+            load_song(missing)
+
+
+def test_load_song_unsupported_suffix(tmp_path: Path) -> None:
+    path = tmp_path / "song.wav"
+    path.write_bytes(b"RIFF")
+    with pytest.raises(MusicError, match="unsupported"):
+        load_song(path)
