@@ -28,6 +28,8 @@ def key_events(
         (events, last): an (n, 3) event array sorted by time then key, and a copy of active[-1].
     """
     last = active[-1].copy()
+    if (active == previous).all():  # the common case: nothing started or stopped sounding
+        return EMPTY_EVENTS, last
     changed = active != np.concatenate([previous[None], active[:-1]], axis=0)
     step, key = np.nonzero(changed)
     if step.size == 0:

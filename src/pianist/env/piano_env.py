@@ -98,7 +98,7 @@ class PianoEnv(gym.Env):
         self.metadata = {**self.metadata, "render_fps": round(1 / self.config.control_timestep_s)}
 
         self.goal, self.song = resolve_goal(song, self.config.control_timestep_s)
-        self.scene: Scene = build_scene(self.config.scene)
+        self.scene: Scene = build_scene(self.config.scene, key_history=self.config.substeps)
         self.model: mujoco.MjModel = self.scene.model
         self.data = mujoco.MjData(self.model)
         self._render_size = render_size
@@ -132,7 +132,7 @@ class PianoEnv(gym.Env):
             offset = 0 if hand.side == "right" else 5
             self._finger_sites[offset : offset + 5] = hand.fingertip_sites
         self._forearm_pair = None
-        if len(scene.hands) == 2:
+        if scene.forearms_can_touch:
             self._forearm_pair = {scene.hands[0].forearm_body, scene.hands[1].forearm_body}
         self._tx_joint = {
             h.side: model.joint(f"{C.HAND_PREFIX[h.side]}forearm_tx").id
@@ -141,15 +141,32 @@ class PianoEnv(gym.Env):
             in {model.joint(j).name for j in range(model.njnt)}
         }
         self._bad_qacc = int(mujoco.mjtWarning.mjWARN_BADQACC)
+        S = self.config.substeps
+        self._substep_active = np.zeros((S, C.NUM_KEYS), dtype=bool)
+        self._history_ring = scene.key_history_values.shape[1]
+        if self._history_ring < S:
+            raise ValueError(f"the key sensors keep {self._history_ring} samples, need {S}")
+        weights = self.config.rewards.as_dict()
+        self._weights = [(name, weights[name]) for name in REWARD_TERMS]
 
     def _setup_goal(self) -> None:
         goal, lookahead = self.goal, self.config.lookahead
         T = goal.num_frames
-        padded = np.zeros((T + lookahead, C.NUM_KEYS + 1), dtype=np.float32)
+        # Rows up to T + L: the observation after the last step still shows L + 1 frames.
+        padded = np.zeros((T + lookahead + 1, C.NUM_KEYS + 1), dtype=np.float32)
         padded[:T, : C.NUM_KEYS] = goal.keys
         padded[:T, C.NUM_KEYS] = goal.sustain
         self._goal_padded = padded
         self._finger_mask = goal.finger_mask.astype(np.float32)
+        # Per frame, computed once: the due keys, and (fingertip site, key site) pairs of the
+        # fingered ones whose hand is in the scene (the others are not scored).
+        self._due_keys = [np.flatnonzero(row) for row in goal.keys]
+        self._fingering_sites = []
+        for keys, fingers in zip(self._due_keys, goal.fingers, strict=True):
+            keys = keys[fingers[keys] >= 0]
+            sites = self._finger_sites[fingers[keys]]
+            present = sites >= 0
+            self._fingering_sites.append((sites[present], self.scene.key_sites[keys[present]]))
 
     def _setup_spaces(self) -> None:
         L = self.config.lookahead
@@ -206,8 +223,8 @@ class PianoEnv(gym.Env):
         self._t = 0
         self._active = np.zeros(C.NUM_KEYS, dtype=bool)
         self._sustain = False
-        self._substep_active = np.zeros((self.config.substeps, C.NUM_KEYS), dtype=bool)
-        self._substep_time = np.zeros(self.config.substeps)
+        self._pending_events = EMPTY_EVENTS
+        self._key_state = self.key_state()
         self._bad_qacc_seen = data.warning[self._bad_qacc].number
         info = {"step": 0, "active_keys": self._active.copy(), "sustain": False}
         return self._observation(), info
@@ -215,29 +232,58 @@ class PianoEnv(gym.Env):
     def step(
         self, action: np.ndarray
     ) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
+        self.apply_action(action)
+        self.advance_physics()
+        return self.finish_step()
+
+    def advance_physics(self) -> None:
+        """Run the substeps of one control step in a single ``mj_step`` call.
+
+        The call releases Python's global lock for the whole control step (the batched
+        environment relies on it), and the keys' sensor history still records where every key
+        was after every substep.
+        """
+        mujoco.mj_step(self.model, self.data, nstep=self.config.substeps)
+
+    def _substep_key_positions(self) -> tuple[np.ndarray, np.ndarray]:
+        """(S, 88) key angles (rad) and (S,) times (s) after each substep of the last step.
+
+        Sensors sample at the start of a substep, so the history's newest S - 1 samples are
+        the states after substeps 1..S-1 of this step, and ``qpos`` is the state after the last.
+        """
+        S, n, data = self.config.substeps, self._history_ring, self.data
+        history = data.history
+        cursor = int(history[self.scene.key_history_cursor[0]])
+        slots = (cursor - np.arange(S - 2, -1, -1)) % n
+        positions = np.empty((S, C.NUM_KEYS))
+        times = np.empty(S)
+        positions[:-1] = history[self.scene.key_history_values[:, slots]].T
+        times[:-1] = history[self.scene.key_history_times[0, slots]]
+        positions[-1] = data.qpos[self._key_slice]
+        times[-1] = data.time
+        return positions, times
+
+    def apply_action(self, action: np.ndarray) -> None:
+        """Validate ``action`` and write it to ``data.ctrl`` and the pedal (first half of step)."""
         if self._t >= self.goal.num_frames:
             raise RuntimeError("the episode is over: call reset()")
-        model, data = self.model, self.data
         action = np.asarray(action, dtype=np.float64)
-        if action.shape != (model.nu + 1,):
-            raise ValueError(f"action must have shape ({model.nu + 1},), not {action.shape}")
+        if action.shape != (self.model.nu + 1,):
+            raise ValueError(f"action must have shape ({self.model.nu + 1},), not {action.shape}")
         if not np.all(np.isfinite(action)):
             raise ValueError("action contains NaN or Inf")
         action = np.clip(action, -1.0, 1.0)
-        data.ctrl[:] = self._ctrl_low + (action[:-1] + 1.0) * self._ctrl_half
-
-        events = EMPTY_EVENTS
+        self.data.ctrl[:] = self._ctrl_low + (action[:-1] + 1.0) * self._ctrl_half
         sustain = bool(action[-1] >= 0.0)  # the pedal value (a + 1) / 2 reaches 0.5
+        self._pending_events = EMPTY_EVENTS
         if sustain != self._sustain:
-            events = sustain_event(data.time, sustain)
+            self._pending_events = sustain_event(self.data.time, sustain)
         self._sustain = sustain
-        data.userdata[0] = float(sustain)
+        self.data.userdata[0] = float(sustain)
 
-        key_slice, threshold = self._key_slice, self._key_threshold
-        for i in range(self.config.substeps):
-            mujoco.mj_step(model, data)
-            np.greater_equal(data.qpos[key_slice], threshold, out=self._substep_active[i])
-            self._substep_time[i] = data.time
+    def finish_step(self) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
+        """Last part of :meth:`step`, once ``data`` holds the state a control step later."""
+        model, data = self.model, self.data
         if (
             data.warning[self._bad_qacc].number != self._bad_qacc_seen
             or not np.isfinite(data.qpos).all()
@@ -248,15 +294,18 @@ class PianoEnv(gym.Env):
             )
         # After mj_step, derived positions lag qpos by one substep: bring them up to date.
         mujoco.mj_kinematics(model, data)
+        key_qpos, times = self._substep_key_positions()
+        np.greater_equal(key_qpos, self._key_threshold, out=self._substep_active)
 
-        key_ev, self._active = key_events(self._active, self._substep_active, self._substep_time)
+        events = self._pending_events
+        key_ev, self._active = key_events(self._active, self._substep_active, times)
         if key_ev.size:
             events = np.concatenate([events, key_ev]) if events.size else key_ev
 
         t = self._t
+        self._key_state = self.key_state()
         terms = self._reward_terms(t)
-        weights = self.config.rewards
-        reward = sum(getattr(weights, name) * terms[name] for name in REWARD_TERMS)
+        reward = sum(w * terms[name] for name, w in self._weights)
         due = self.goal.keys[t]
         wrong = bool((self._active & ~due).any())
         self._t = t + 1
@@ -266,10 +315,14 @@ class PianoEnv(gym.Env):
             "step": self._t,
             "reward_terms": terms,
             "active_keys": self._active.copy(),
-            "sustain": sustain,
+            "sustain": self._sustain,
             "goal_keys": due,
             "goal_sustain": bool(self.goal.sustain[t]),
-            "note_events": events,
+            # Plain tuples (time_s, key, on): variable length, so Gymnasium's vector envs keep
+            # them as objects instead of trying to stack them. Key -1 is the sustain pedal.
+            "note_events": tuple(
+                (time_s, int(key), bool(on)) for time_s, key, on in events.tolist()
+            ),
         }
         return self._observation(), float(reward), terminated, truncated, info
 
@@ -294,26 +347,28 @@ class PianoEnv(gym.Env):
         return np.clip(self.data.qpos[self._key_slice], 0.0, self._key_max) / self._key_max
 
     def _reward_terms(self, t: int) -> dict[str, float]:
-        data = self.data
-        due = self.goal.keys[t]
-        fingers = self.goal.fingers[t]
-        assigned = due & (fingers >= 0)
-        keys = np.flatnonzero(assigned)
-        sites = self._finger_sites[fingers[keys]]
-        present = sites >= 0  # fingers of a hand that is not in the scene are not scored
-        fingering = R.fingering_reward(
-            data.site_xpos[sites[present]], data.site_xpos[self.scene.key_sites[keys[present]]]
-        )
+        site_xpos = self.data.site_xpos
+        fingertips, targets = self._fingering_sites[t]
         return {
-            "key_press": R.key_press_reward(self.key_state(), due, self._active),
-            "fingering": fingering,
-            "energy": R.energy(data.actuator_force, data.actuator_velocity),
+            "key_press": R.key_press_reward(
+                self._key_state, self.goal.keys[t], self._active, self._due_keys[t]
+            ),
+            "fingering": R.fingering_reward(site_xpos[fingertips], site_xpos[targets]),
+            # Force and velocity sensors, as computed during the last substep.
+            "energy": R.energy(
+                self.data.sensordata[self.scene.actuator_force_sensors],
+                self.data.sensordata[self.scene.actuator_velocity_sensors],
+            ),
             "sustain": R.sustain_reward(bool(self.goal.sustain[t]), self._sustain),
             "forearm": R.forearm_reward(self._forearms_touch()),
         }
 
     def _forearms_touch(self) -> bool:
-        if self._forearm_pair is None or self.data.ncon == 0:
+        if self._forearm_pair is None:
+            return False
+        # Contacts of the current positions (data.contact after mj_step is a substep old).
+        mujoco.mj_collision(self.model, self.data)
+        if self.data.ncon == 0:
             return False
         body = self.model.geom_bodyid[self.data.contact.geom]  # (ncon, 2)
         first, second = self._forearm_pair
@@ -333,7 +388,7 @@ class PianoEnv(gym.Env):
                 if t < self.goal.num_frames
                 else np.zeros(10, np.float32)
             ),
-            "piano_keys": self.key_state().astype(np.float32),
+            "piano_keys": self._key_state.astype(np.float32),
             "piano_sustain": np.array([float(self._sustain)], dtype=np.float32),
         }
         for hand in self.scene.hands:

@@ -13,7 +13,7 @@ import mujoco
 import numpy as np
 
 from pianist.sim import constants as C
-from pianist.sim.hands import PIANO_BIT, HandOptions, Side, attach_hand, is_fingertip_body
+from pianist.sim.hands import HandOptions, Side, attach_hand, is_fingertip_body
 from pianist.sim.piano import add_piano, key_name
 
 HandsSpec = Literal["both", "right", "left"]
@@ -40,8 +40,10 @@ class PhysicsPreset:
     """Sleeping islands (``mjENBL_SLEEP``): resting keys stop being integrated (~5.0k -> 6.3k)."""
     hand_frictionloss: bool = True
     """Joint dry friction of the hands; each adds a constraint row (off: ~7.4k)."""
-    fingertips_only_touch_keys: bool = False
-    """Only the distal phalanges collide with the piano (~8.9-9.5k)."""
+    fingertip_contacts_only: bool = False
+    """Only the distal phalanges of the hands collide, with the keys and with each other;
+    palms, other phalanges and forearms pass through everything (facts: fingertip-only key
+    contacts ~8.9-9.5k; dropping the rest of the hands' self-contacts gains ~1.5x more here)."""
 
 
 FAITHFUL = PhysicsPreset(name="faithful")
@@ -51,7 +53,7 @@ FAST = PhysicsPreset(
     ls_iterations=10,
     sleep=True,
     hand_frictionloss=False,
-    fingertips_only_touch_keys=True,
+    fingertip_contacts_only=True,
 )
 PHYSICS_PRESETS: dict[str, PhysicsPreset] = {p.name: p for p in (FAITHFUL, FAST)}
 
@@ -107,11 +109,30 @@ class Scene:
     key_sites: np.ndarray  # (88,) fingertip targets
     key_max_angle_rad: np.ndarray  # (88,)
     hands: tuple[HandIndex, ...]
+    actuator_force_sensors: np.ndarray  # (nu,) sensordata address of each actuator's force
+    actuator_velocity_sensors: np.ndarray  # (nu,) sensordata address of each actuator's velocity
+    key_history_cursor: np.ndarray  # (88,) data.history address of each key sensor's cursor
+    key_history_times: np.ndarray  # (88, n) data.history addresses of the sample times
+    key_history_values: np.ndarray  # (88, n) data.history addresses of the sampled positions
 
     @property
     def actuator_ranges(self) -> np.ndarray:
         """(nu, 2) control range of every actuator."""
         return self.model.actuator_ctrlrange
+
+    @property
+    def forearms_can_touch(self) -> bool:
+        """Whether the two forearms have geoms that may collide with each other."""
+        if len(self.hands) != 2:
+            return False
+        m = self.model
+        a, b = (h.forearm_geoms for h in self.hands)
+        if a.size == 0 or b.size == 0:
+            return False
+        return bool(
+            np.any(m.geom_contype[a][:, None] & m.geom_conaffinity[b][None, :])
+            or np.any(m.geom_contype[b][:, None] & m.geom_conaffinity[a][None, :])
+        )
 
     def hand(self, side: Side) -> HandIndex:
         for h in self.hands:
@@ -120,8 +141,12 @@ class Scene:
         raise KeyError(f"the scene has no {side} hand")
 
 
-def build_spec(options: SceneOptions) -> mujoco.MjSpec:
-    """The uncompiled scene, for callers who want to edit it further."""
+def build_spec(options: SceneOptions, key_history: int = 10) -> mujoco.MjSpec:
+    """The uncompiled scene, for callers who want to edit it further.
+
+    ``key_history`` is how many past samples each key's position sensor keeps (see
+    :attr:`Scene.key_history_values`): at least the substeps of one control step.
+    """
     preset = options.physics_preset
     spec = mujoco.MjSpec()
     spec.modelname = "pianist"
@@ -133,23 +158,56 @@ def build_spec(options: SceneOptions) -> mujoco.MjSpec:
     add_piano(spec)
     for side in options.sides:
         attach_hand(spec, side, options.hand)
+    _add_actuator_sensors(spec)
+    _add_key_sensors(spec, key_history)
     if not preset.hand_frictionloss:
         for joint in spec.joints:
             if joint.name.startswith(("rh/", "lh/")):
                 joint.frictionloss = 0.0
-    if preset.fingertips_only_touch_keys:
+    if preset.fingertip_contacts_only:
         for geom in spec.geoms:
             body = geom.parent
             if body.name.startswith(("rh/", "lh/")) and not is_fingertip_body(body.name):
-                geom.contype &= ~PIANO_BIT
+                geom.contype = 0
+                geom.conaffinity = 0
     return spec
 
 
-def build_scene(options: SceneOptions | None = None) -> Scene:
+def build_scene(options: SceneOptions | None = None, key_history: int = 10) -> Scene:
     """Compile the scene described by ``options`` (defaults: both hands, paper setup)."""
     options = options or SceneOptions()
-    model = build_spec(options).compile()
+    model = build_spec(options, key_history).compile()
     return _index(model, options)
+
+
+def _add_key_sensors(spec: mujoco.MjSpec, samples: int) -> None:
+    """A position sensor on every key that keeps its last ``samples`` values (MuJoCo sensor
+    history). One ``mj_step(nstep=S)`` call, which releases Python's lock for the whole
+    control step, then still tells where every key was after every substep."""
+    for key in range(C.NUM_KEYS):
+        sensor = spec.add_sensor(
+            name=f"{key_name(key)}_pos",
+            type=mujoco.mjtSensor.mjSENS_JOINTPOS,
+            objtype=mujoco.mjtObj.mjOBJ_JOINT,
+            objname=key_name(key),
+        )
+        sensor.nsample = samples
+
+
+def _add_actuator_sensors(spec: mujoco.MjSpec) -> None:
+    """Force and velocity of every actuator as sensors, so that the energy term can be read
+    from ``sensordata`` after ``mj_step`` and from ``mujoco.rollout`` alike."""
+    for act in list(spec.actuators):
+        for kind, tag in (
+            (mujoco.mjtSensor.mjSENS_ACTUATORFRC, "force"),
+            (mujoco.mjtSensor.mjSENS_ACTUATORVEL, "velocity"),
+        ):
+            spec.add_sensor(
+                name=f"{act.name}_{tag}",
+                type=kind,
+                objtype=mujoco.mjtObj.mjOBJ_ACTUATOR,
+                objname=act.name,
+            )
 
 
 def _set_physics(spec: mujoco.MjSpec, preset: PhysicsPreset) -> None:
@@ -202,6 +260,20 @@ def _look_at(pos: np.ndarray, target: np.ndarray) -> np.ndarray:
     return np.concatenate([x, y])
 
 
+def _key_history_index(model: mujoco.MjModel) -> dict[str, np.ndarray]:
+    # Layout of one scalar sensor's history (MuJoCo 4): [user, cursor, n times, n values];
+    # the cursor is the slot of the newest sample of a circular buffer.
+    ids = [model.sensor(f"{key_name(k)}_pos").id for k in range(C.NUM_KEYS)]
+    adr = model.sensor_historyadr[ids]
+    n = int(model.sensor_history[ids[0], 0])
+    slots = np.arange(n)
+    return {
+        "key_history_cursor": adr + 1,
+        "key_history_times": adr[:, None] + 2 + slots,
+        "key_history_values": adr[:, None] + 2 + n + slots,
+    }
+
+
 def _index(model: mujoco.MjModel, options: SceneOptions) -> Scene:
     key_joints = [model.joint(key_name(k)).id for k in range(C.NUM_KEYS)]
     hands = []
@@ -224,7 +296,8 @@ def _index(model: mujoco.MjModel, options: SceneOptions) -> Scene:
                 ),
                 forearm_body=forearm,
                 forearm_geoms=np.flatnonzero(
-                    (model.geom_bodyid == forearm) & (model.geom_contype != 0)
+                    (model.geom_bodyid == forearm)
+                    & ((model.geom_contype != 0) | (model.geom_conaffinity != 0))
                 ),
             )
         )
@@ -237,4 +310,19 @@ def _index(model: mujoco.MjModel, options: SceneOptions) -> Scene:
         key_sites=np.array([model.site(key_name(k)).id for k in range(C.NUM_KEYS)], np.intp),
         key_max_angle_rad=model.jnt_range[key_joints, 1].copy(),
         hands=tuple(hands),
+        **_key_history_index(model),
+        actuator_force_sensors=np.array(
+            [
+                model.sensor_adr[model.sensor(f"{model.actuator(a).name}_force").id]
+                for a in range(model.nu)
+            ],
+            dtype=np.intp,
+        ),
+        actuator_velocity_sensors=np.array(
+            [
+                model.sensor_adr[model.sensor(f"{model.actuator(a).name}_velocity").id]
+                for a in range(model.nu)
+            ],
+            dtype=np.intp,
+        ),
     )
