@@ -1,0 +1,17 @@
+"""Controllers that need no training."""
+
+from pianist.control.basic import (
+    Controller,
+    RandomController,
+    ReplayController,
+    ZeroController,
+    make_controller,
+)
+
+__all__ = [
+    "Controller",
+    "RandomController",
+    "ReplayController",
+    "ZeroController",
+    "make_controller",
+]

@@ -140,12 +140,17 @@ class PianoEnv(gym.Env):
             if f"{C.HAND_PREFIX[h.side]}forearm_tx"
             in {model.joint(j).name for j in range(model.njnt)}
         }
-        self._bad_qacc = int(mujoco.mjtWarning.mjWARN_BADQACC)
         S = self.config.substeps
         self._substep_active = np.zeros((S, C.NUM_KEYS), dtype=bool)
-        self._history_ring = scene.key_history_values.shape[1]
-        if self._history_ring < S:
-            raise ValueError(f"the key sensors keep {self._history_ring} samples, need {S}")
+        ring = scene.key_history_values.shape[1]
+        if ring < S:
+            raise ValueError(f"the key sensors keep {ring} samples, need {S}")
+        # For each cursor position of the circular history, the addresses of the newest S - 1
+        # samples in time order: (ring, S-1, 88) values and (ring, S-1) times.
+        slots = (np.arange(ring)[:, None] - np.arange(S - 2, -1, -1)[None, :]) % ring
+        self._history_cursor = int(scene.key_history_cursor[0])
+        self._history_values = scene.key_history_values[:, slots].transpose(1, 2, 0).copy()
+        self._history_times = scene.key_history_times[0, slots]
         weights = self.config.rewards.as_dict()
         self._weights = [(name, weights[name]) for name in REWARD_TERMS]
 
@@ -225,7 +230,7 @@ class PianoEnv(gym.Env):
         self._sustain = False
         self._pending_events = EMPTY_EVENTS
         self._key_state = self.key_state()
-        self._bad_qacc_seen = data.warning[self._bad_qacc].number
+        self._expected_time = data.time
         info = {"step": 0, "active_keys": self._active.copy(), "sustain": False}
         return self._observation(), info
 
@@ -251,14 +256,13 @@ class PianoEnv(gym.Env):
         Sensors sample at the start of a substep, so the history's newest S - 1 samples are
         the states after substeps 1..S-1 of this step, and ``qpos`` is the state after the last.
         """
-        S, n, data = self.config.substeps, self._history_ring, self.data
+        S, data = self.config.substeps, self.data
         history = data.history
-        cursor = int(history[self.scene.key_history_cursor[0]])
-        slots = (cursor - np.arange(S - 2, -1, -1)) % n
+        cursor = int(history[self._history_cursor])
         positions = np.empty((S, C.NUM_KEYS))
         times = np.empty(S)
-        positions[:-1] = history[self.scene.key_history_values[:, slots]].T
-        times[:-1] = history[self.scene.key_history_times[0, slots]]
+        positions[:-1] = history[self._history_values[cursor]]
+        times[:-1] = history[self._history_times[cursor]]
         positions[-1] = data.qpos[self._key_slice]
         times[-1] = data.time
         return positions, times
@@ -284,10 +288,10 @@ class PianoEnv(gym.Env):
     def finish_step(self) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
         """Last part of :meth:`step`, once ``data`` holds the state a control step later."""
         model, data = self.model, self.data
-        if (
-            data.warning[self._bad_qacc].number != self._bad_qacc_seen
-            or not np.isfinite(data.qpos).all()
-        ):
+        # On a diverging step MuJoCo warns and resets the state, which sends time back to 0:
+        # checking the clock is much cheaper than reading the warning counters every step.
+        self._expected_time += self.config.control_timestep_s
+        if abs(data.time - self._expected_time) > 1e-6 or not np.isfinite(data.qpos).all():
             raise SimulationUnstableError(
                 f"the simulation diverged at t = {data.time:.3f} s (step {self._t}); "
                 "MuJoCo reset the state"

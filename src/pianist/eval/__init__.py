@@ -1,9 +1,17 @@
-"""Evaluation of piano playing: RoboPianist's precision / recall / F1 metrics."""
+"""Evaluation of piano playing: RoboPianist's metrics, episode records and rollouts."""
 
+from pianist.eval.episode import Episode
 from pianist.eval.metrics import (
     per_step_precision_recall_f1,
     precision_recall_f1,
     sustain_metrics,
 )
+from pianist.eval.rollout import run_episode
 
-__all__ = ["per_step_precision_recall_f1", "precision_recall_f1", "sustain_metrics"]
+__all__ = [
+    "Episode",
+    "per_step_precision_recall_f1",
+    "precision_recall_f1",
+    "run_episode",
+    "sustain_metrics",
+]

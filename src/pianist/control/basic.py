@@ -1,0 +1,85 @@
+"""Baseline controllers: random actions, a neutral pose, and replaying recorded actions.
+
+A controller is reset with the environment it will drive, then maps each observation to a
+normalised action in [-1, 1]^A, like any policy.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Protocol
+
+import gymnasium as gym
+import numpy as np
+
+
+class Controller(Protocol):
+    def reset(self, env: gym.Env, seed: int | None = None) -> None: ...
+
+    def act(self, observation: dict[str, np.ndarray]) -> np.ndarray: ...
+
+
+class RandomController:
+    """Uniform random actions in [-1, 1] from a seeded generator."""
+
+    def reset(self, env: gym.Env, seed: int | None = None) -> None:
+        self._shape = env.action_space.shape
+        self._rng = np.random.default_rng(seed)
+
+    def act(self, observation: dict[str, np.ndarray]) -> np.ndarray:
+        return self._rng.uniform(-1.0, 1.0, self._shape).astype(np.float32)
+
+
+class ZeroController:
+    """Every actuator at the middle of its range (action 0), the pedal up (action -1)."""
+
+    def reset(self, env: gym.Env, seed: int | None = None) -> None:
+        self._action = np.zeros(env.action_space.shape, dtype=np.float32)
+        self._action[-1] = -1.0
+
+    def act(self, observation: dict[str, np.ndarray]) -> np.ndarray:
+        return self._action.copy()
+
+
+class ReplayController:
+    """Plays back a (T, A) array of actions, for example a saved ``actions.npy``."""
+
+    def __init__(self, actions: np.ndarray | str | Path) -> None:
+        if isinstance(actions, str | Path):
+            path = Path(actions)
+            if not path.is_file():
+                raise FileNotFoundError(f"actions file not found: {path}")
+            try:
+                actions = np.load(path, allow_pickle=False)
+            except (ValueError, OSError, EOFError) as exc:
+                raise ValueError(f"{path} is not a readable .npy array ({exc})") from None
+        self.actions = np.asarray(actions, dtype=np.float32)
+        if self.actions.ndim != 2:
+            raise ValueError(f"replayed actions must be a (T, A) array, not {self.actions.shape}")
+
+    def reset(self, env: gym.Env, seed: int | None = None) -> None:
+        expected = env.action_space.shape[0]
+        if self.actions.shape[1] != expected:
+            raise ValueError(
+                f"replayed actions have {self.actions.shape[1]} dimensions, "
+                f"the environment expects {expected}"
+            )
+        self._t = 0
+
+    def act(self, observation: dict[str, np.ndarray]) -> np.ndarray:
+        if self._t >= len(self.actions):
+            raise ValueError(f"the replayed actions ran out after {len(self.actions)} steps")
+        action = self.actions[self._t]
+        self._t += 1
+        return action
+
+
+def make_controller(spec: str, **kwargs: Any) -> Controller:
+    """``random``, ``zero`` or ``replay:PATH.npy`` -> a controller."""
+    if spec == "random":
+        return RandomController()
+    if spec == "zero":
+        return ZeroController()
+    if spec.startswith("replay:"):
+        return ReplayController(spec.removeprefix("replay:"))
+    raise ValueError(f"unknown controller {spec!r}; use random, zero or replay:ACTIONS.npy")

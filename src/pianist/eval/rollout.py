@@ -1,0 +1,52 @@
+"""Run a controller through one episode of a PianoEnv and record it."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from pianist.eval.episode import Episode
+
+
+def run_episode(env: Any, controller: Any, seed: int | None = 0) -> Episode:
+    """Play one full episode.
+
+    Args:
+        env: a :class:`pianist.env.PianoEnv` (or anything with its step/info contract).
+        controller: an object with ``reset(env, seed)`` and ``act(observation) -> action``.
+        seed: passed to ``env.reset`` and to the controller.
+    Returns:
+        The :class:`Episode` record.
+    """
+    observation, _ = env.reset(seed=seed)
+    controller.reset(env, seed=seed)
+    actions, active, sustain, goal_keys, goal_sustain, rewards = [], [], [], [], [], []
+    terms: dict[str, list[float]] = {}
+    events: list[tuple[float, int, bool]] = []
+    done = False
+    while not done:
+        action = np.asarray(controller.act(observation), dtype=np.float32)
+        observation, reward, terminated, truncated, info = env.step(action)
+        done = terminated or truncated
+        actions.append(action)
+        active.append(info["active_keys"])
+        sustain.append(info["sustain"])
+        goal_keys.append(info["goal_keys"])
+        goal_sustain.append(info["goal_sustain"])
+        rewards.append(reward)
+        for name, value in info["reward_terms"].items():
+            terms.setdefault(name, []).append(value)
+        events.extend(info["note_events"])
+    return Episode(
+        actions=np.stack(actions),
+        active_keys=np.stack(active),
+        sustain=np.array(sustain, dtype=bool),
+        goal_keys=np.stack(goal_keys),
+        goal_sustain=np.array(goal_sustain, dtype=bool),
+        rewards=np.array(rewards),
+        reward_terms={name: np.array(values) for name, values in terms.items()},
+        note_events=np.array(events, dtype=float).reshape(-1, 3),
+        control_timestep_s=env.config.control_timestep_s,
+        end_time_s=float(env.data.time),
+    )
