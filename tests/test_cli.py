@@ -1,0 +1,166 @@
+"""The pianist command line, run as users run it."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import mido
+import numpy as np
+import pytest
+
+from pianist.cli import main
+
+
+def run(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", "pianist.cli", *args], capture_output=True, text=True, timeout=300
+    )
+
+
+def test_help_lists_subcommands():
+    result = run("--help")
+    assert result.returncode == 0
+    for name in ("songs", "info", "play"):
+        assert name in result.stdout
+
+
+def test_songs_lists_builtins(capsys):
+    assert main(["songs"]) == 0
+    out = capsys.readouterr().out
+    assert "twinkle-twinkle" in out and "c-major-chords" in out
+
+
+def test_info_describes_a_song(capsys):
+    assert main(["info", "c-major-chords"]) == 0
+    out = capsys.readouterr().out
+    assert "notes:      16" in out and "81 frames" in out
+
+
+def test_play_writes_metrics_midi_and_actions(tmp_path, capsys):
+    out = tmp_path / "run"
+    assert (
+        main(
+            [
+                "play",
+                "c-major-chords",
+                "--controller",
+                "zero",
+                "--out",
+                str(out),
+                "--physics",
+                "fast",
+            ]
+        )
+        == 0
+    )
+    metrics = json.loads((out / "metrics.json").read_text())
+    for key in ("precision", "recall", "f1", "sustain_f1", "steps", "seconds"):
+        assert key in metrics
+    assert metrics["steps"] == 81 and metrics["seconds"] == pytest.approx(4.05)
+    actions = np.load(out / "actions.npy")
+    assert actions.shape == (81, 39)
+    mido.MidiFile(out / "performance.mid")  # a readable MIDI file
+    # Replaying the saved actions reproduces the same scores.
+    again = tmp_path / "again"
+    assert (
+        main(
+            [
+                "play",
+                "c-major-chords",
+                "--controller",
+                f"replay:{out / 'actions.npy'}",
+                "--out",
+                str(again),
+                "--physics",
+                "fast",
+            ]
+        )
+        == 0
+    )
+    replayed = json.loads((again / "metrics.json").read_text())
+    assert replayed["f1"] == metrics["f1"] and replayed["return"] == metrics["return"]
+
+
+@pytest.mark.parametrize(
+    ("make_input", "message"),
+    [
+        (lambda d: "no-such-song", "unknown song"),
+        (lambda d: str(d / "missing.mid"), "not found"),
+        (lambda d: _write(d / "empty.mid", b""), "empty"),
+        (lambda d: _write(d / "text.mid", b"hello, not midi at all"), "not a MIDI file"),
+    ],
+)
+def test_bad_input_gives_one_line_and_exit_1(tmp_path, make_input, message):
+    result = run("play", make_input(tmp_path), "--out", str(tmp_path / "o"))
+    assert result.returncode == 1
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("pianist: error:")
+    assert message in lines[0]
+    assert "Traceback" not in result.stderr
+
+
+def test_out_of_range_notes_are_refused(tmp_path):
+    path = tmp_path / "low.mid"
+    midi = mido.MidiFile()
+    track = mido.MidiTrack()
+    track += [
+        mido.Message("note_on", note=10, velocity=80, time=0),
+        mido.Message("note_off", note=10, velocity=0, time=480),
+    ]
+    midi.tracks.append(track)
+    midi.save(path)
+    result = run("info", str(path))
+    assert result.returncode == 1 and "pianist: error:" in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1
+
+
+def test_unwritable_output_directory(tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    result = run("play", "c-major-chords", "--out", str(blocker / "sub"))
+    assert result.returncode == 1 and "output directory" in result.stderr
+
+
+def test_failed_run_keeps_previous_results(tmp_path):
+    out = tmp_path / "run"
+    assert (
+        main(
+            [
+                "play",
+                "c-major-chords",
+                "--controller",
+                "zero",
+                "--out",
+                str(out),
+                "--physics",
+                "fast",
+            ]
+        )
+        == 0
+    )
+    before = (out / "metrics.json").read_bytes()
+    bad = tmp_path / "short.npy"
+    np.save(bad, np.zeros((3, 39)))
+    assert (
+        main(
+            [
+                "play",
+                "c-major-chords",
+                "--controller",
+                f"replay:{bad}",
+                "--out",
+                str(out),
+                "--physics",
+                "fast",
+            ]
+        )
+        == 1
+    )
+    assert (out / "metrics.json").read_bytes() == before
+    assert not list(out.glob(".*.tmp"))
+
+
+def _write(path: Path, data: bytes) -> str:
+    path.write_bytes(data)
+    return str(path)

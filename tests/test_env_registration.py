@@ -1,0 +1,73 @@
+"""Gymnasium ids pianist/<song>-v0 for the built-in songs."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import pianist.env
+from pianist.env import PianoEnv
+from pianist.env.registration import env_id, register_envs
+from pianist.music import list_songs
+
+
+def test_every_song_is_registered() -> None:
+    songs = list_songs()
+    assert len(songs) >= 6 and "twinkle-twinkle" in songs
+    for song in songs:
+        spec = gym.spec(f"pianist/{song}-v0")
+        assert spec.kwargs["song"] == song
+        assert spec.namespace == "pianist" and spec.version == 0
+    assert env_id("c-major-chords") == "pianist/c-major-chords-v0"
+    assert pianist.env.register_envs is register_envs
+
+
+def test_register_envs_is_idempotent() -> None:
+    before = {k for k in gym.registry if k.startswith("pianist/")}
+    ids = register_envs()
+    assert ids == [f"pianist/{s}-v0" for s in list_songs()]
+    assert {k for k in gym.registry if k.startswith("pianist/")} == before
+
+
+def test_make_and_step() -> None:
+    env = gym.make("pianist/twinkle-twinkle-v0")
+    try:
+        assert isinstance(env.unwrapped, PianoEnv)
+        obs, _ = env.reset(seed=0)
+        assert env.observation_space.contains(obs)
+        env.action_space.seed(0)
+        for _ in range(3):
+            obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
+        assert env.observation_space.contains(obs)
+        assert np.isfinite(reward) and not terminated and not truncated
+        assert set(info["reward_terms"]) == {
+            "key_press",
+            "fingering",
+            "energy",
+            "sustain",
+            "forearm",
+        }
+    finally:
+        env.close()
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "check"),
+    [
+        ({"lookahead": 3}, lambda obs, env: obs["goal"].shape == (4, 89)),
+        ({"hands": "right"}, lambda obs, env: "lh_joints" not in obs and "rh_joints" in obs),
+        ({"reduced_action_space": False}, lambda obs, env: env.action_space.shape == (45,)),
+    ],
+    ids=["lookahead", "hands", "full-action-space"],
+)
+def test_make_passes_options(kwargs: dict, check: Callable[..., bool]) -> None:
+    env = gym.make("pianist/c-major-scale-right-v0", **kwargs)
+    try:
+        obs, _ = env.reset(seed=0)
+        assert check(obs, env)
+        assert env.observation_space.contains(obs)
+    finally:
+        env.close()
