@@ -70,3 +70,17 @@ def test_bad_action_shape_is_rejected():
     with pytest.raises(ValueError, match="shape"):
         venv.step(np.zeros((3, 39)))
     venv.close()
+
+
+def test_single_env_works_inside_gymnasiums_own_vector_env():
+    import gymnasium as gym
+
+    venv = gym.vector.SyncVectorEnv([lambda: PianoEnv(TINY, physics="fast")] * 2)
+    venv.reset(seed=0)
+    steps = PianoEnv(TINY).num_steps
+    for _ in range(steps):
+        obs, rewards, terminated, truncated, info = venv.step(np.zeros((2, 39)))
+    assert truncated.all()
+    assert obs["goal"].shape == (2, 11, 89)
+    assert len(info["note_events"]) == 2  # variable-length events survive the batching
+    venv.close()
