@@ -33,6 +33,8 @@ class Episode:
         note_events: (n, 3) rows (time s, key 0-87 or -1 for the pedal, 1 on / 0 off).
         control_timestep_s: seconds per step.
         end_time_s: simulation time at the end of the episode.
+        qpos: (T + 1, nq) joint positions after reset and after each step (for video), or
+            None when not recorded.
     """
 
     actions: np.ndarray
@@ -45,6 +47,7 @@ class Episode:
     note_events: np.ndarray
     control_timestep_s: float
     end_time_s: float
+    qpos: np.ndarray | None = None
     extra: dict[str, Any] = field(default_factory=dict)
 
     @property

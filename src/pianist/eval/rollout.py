@@ -24,6 +24,7 @@ def run_episode(env: Any, controller: Any, seed: int | None = 0) -> Episode:
     actions, active, sustain, goal_keys, goal_sustain, rewards = [], [], [], [], [], []
     terms: dict[str, list[float]] = {}
     events: list[tuple[float, int, bool]] = []
+    qpos = [env.data.qpos.copy()]
     done = False
     while not done:
         action = np.asarray(controller.act(observation), dtype=np.float32)
@@ -38,6 +39,7 @@ def run_episode(env: Any, controller: Any, seed: int | None = 0) -> Episode:
         for name, value in info["reward_terms"].items():
             terms.setdefault(name, []).append(value)
         events.extend(info["note_events"])
+        qpos.append(env.data.qpos.copy())
     return Episode(
         actions=np.stack(actions),
         active_keys=np.stack(active),
@@ -49,4 +51,5 @@ def run_episode(env: Any, controller: Any, seed: int | None = 0) -> Episode:
         note_events=np.array(events, dtype=float).reshape(-1, 3),
         control_timestep_s=env.config.control_timestep_s,
         end_time_s=float(env.data.time),
+        qpos=np.stack(qpos),
     )
