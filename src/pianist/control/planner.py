@@ -41,6 +41,8 @@ class PlannerConfig:
     press_lead_frames: int = 1
     """Frames ahead of the scored frame whose keys the fingers go for."""
     hover_lead_s: float = 0.25
+    align_tolerance_m: float = 0.006
+    """How close (horizontally) to its key a finger must be before it presses."""
     forearm_lead_s: float = 0.2
     forearm_separation_m: float = 0.21
     """Closest the two forearm roots may come along the keyboard (they collide below ~0.15)."""
@@ -114,7 +116,14 @@ class IKPlanner:
         )
         for hand in self.hands:
             targets, weights = hand.fingertip_targets(
-                self.goal, press_frame, hover_frames, scratch, self.key_target, self.key_top_z, cfg
+                self.goal,
+                press_frame,
+                hover_frames,
+                scratch,
+                env.data.site_xpos[hand.sites],
+                self.key_target,
+                self.key_top_z,
+                cfg,
             )
             hand.solve(m, scratch, targets, weights, cfg)
             ctrl[hand.actuators] = hand.controls(scratch)
@@ -226,9 +235,14 @@ class _HandModel:
         ctrl[self.tx_actuator] = target
 
     def fingertip_targets(
-        self, goal, frame: int, hover_frames, scratch, key_target, key_top_z, cfg
+        self, goal, frame: int, hover_frames, scratch, real_tips, key_target, key_top_z, cfg
     ) -> tuple[np.ndarray, np.ndarray]:
-        """(5, 3) fingertip targets and (5,) weights for this hand."""
+        """(5, 3) fingertip targets and (5,) weights for this hand.
+
+        A finger due to press comes down only once it is over its key (``real_tips``, the
+        fingertips' actual positions, within ``align_tolerance_m``): a finger that lands beside
+        its key sticks to the key top by friction and presses the gap or the neighbour.
+        """
         radius = C.FINGERTIP_CAPSULE_RADIUS_M
         tips = scratch.site_xpos[self.sites]
         targets = tips.copy()
@@ -241,7 +255,14 @@ class _HandModel:
             finger = goal.fingers[frame, key] - self.finger_offset
             if 0 <= finger < FINGERS_PER_HAND:
                 targets[finger] = key_target[key]
-                targets[finger, 2] = key_top_z[key] + radius - cfg.press_depth_m
+                aligned = np.hypot(*(real_tips[finger, :2] - key_target[key, :2]))
+                if (
+                    aligned <= cfg.align_tolerance_m
+                    or real_tips[finger, 2] < key_top_z[key] + radius
+                ):
+                    targets[finger, 2] = key_top_z[key] + radius - cfg.press_depth_m
+                else:
+                    targets[finger, 2] = key_top_z[key] + radius + cfg.hover_height_m
                 weights[finger] = 1.0
                 weights_xy[finger] = 1.0
                 assigned[finger] = True
