@@ -15,6 +15,7 @@ ALLOWED = {
     "env": {"music", "sim"},
     "control": {"music", "sim", "env"},
     "eval": {"music", "sim", "env", "control"},
+    "media": {"music", "sim", "env", "eval"},
 }
 
 

@@ -1,0 +1,26 @@
+"""Media made from episodes and songs: piano audio, MP4 videos, piano-roll plots.
+
+Importing this package is cheap: the heavy libraries (tinysoundfont, mujoco, imageio-ffmpeg,
+tqdm, matplotlib) are imported by the functions that use them. Rendering video needs an
+offscreen OpenGL context: on a machine without a display set ``MUJOCO_GL=egl`` (or ``osmesa``)
+before ``mujoco`` is first imported.
+"""
+
+from pianist.media.audio import default_soundfont, synthesize_events, synthesize_song, write_wav
+from pianist.media.errors import MediaError
+from pianist.media.plots import pianoroll_counts, plot_pianoroll
+from pianist.media.video import frame_times, interpolate_qpos, key_colours, render_episode
+
+__all__ = [
+    "MediaError",
+    "default_soundfont",
+    "frame_times",
+    "interpolate_qpos",
+    "key_colours",
+    "pianoroll_counts",
+    "plot_pianoroll",
+    "render_episode",
+    "synthesize_events",
+    "synthesize_song",
+    "write_wav",
+]

@@ -1,0 +1,312 @@
+"""Piano audio from note events or songs, synthesised with a General MIDI SoundFont.
+
+The synthesiser is TinySoundFont (the ``tinysoundfont`` wheel, self-contained) and the default
+SoundFont is ``TimGM6mb.sf2``, which ships inside the ``pretty_midi`` package, so rendering
+needs no system package and no download.
+
+Install note: ``tinysoundfont`` declares ``pyaudio`` as a requirement, which has no Linux wheel
+and needs PortAudio headers to build. PyAudio is only used for live playback, which this module
+never does, so ``pip install --no-deps tinysoundfont`` is enough.
+
+TinySoundFont ignores the sustain-pedal controller (MIDI CC 64), so the pedal is implemented
+here the way a piano's damper pedal works: while it is down, a released key's note-off is held
+back and sent when the pedal lifts (unless the key was pressed again meanwhile).
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import math
+import os
+import wave
+from collections.abc import Iterable
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from pianist.media._files import atomic_output
+from pianist.media.errors import MediaError
+
+if TYPE_CHECKING:
+    from pianist.music import Song
+
+LOWEST_PITCH = 21  # MIDI pitch of key 0 (A0)
+NUM_KEYS = 88
+PEDAL_KEY = -1
+DEFAULT_SAMPLE_RATE = 44100
+DEFAULT_TAIL_S = 1.0
+DEFAULT_SOUNDFONT_NAME = "TimGM6mb.sf2"
+
+# Event kinds, in the order they are applied when several happen at the same time: a key
+# released and pressed again at one instant must restart the note, and a pedal change takes
+# effect before the notes of that instant.
+_PEDAL, _OFF, _ON = 0, 1, 2
+_CHANNEL = 0
+
+
+def default_soundfont() -> Path:
+    """Path of the General MIDI SoundFont ``TimGM6mb.sf2`` shipped with ``pretty_midi``.
+
+    The package is located without being imported (its import pulls in much more than a file).
+
+    Raises:
+        MediaError: ``pretty_midi`` is not installed or does not contain the file.
+    """
+    spec = importlib.util.find_spec("pretty_midi")
+    if spec is None or not spec.submodule_search_locations:
+        raise MediaError("the default soundfont comes with pretty_midi: pip install pretty_midi")
+    for folder in spec.submodule_search_locations:
+        path = Path(folder) / DEFAULT_SOUNDFONT_NAME
+        if path.is_file():
+            return path
+    raise MediaError(f"soundfont not found: {DEFAULT_SOUNDFONT_NAME} is missing from pretty_midi")
+
+
+def synthesize_events(
+    events: np.ndarray,
+    duration_s: float,
+    *,
+    sample_rate: int = DEFAULT_SAMPLE_RATE,
+    soundfont: str | os.PathLike[str] | None = None,
+    velocity: int = 80,
+    program: int = 0,
+    tail_s: float = DEFAULT_TAIL_S,
+    gain_db: float = 0.0,
+) -> np.ndarray:
+    """Render key and pedal events, e.g. :attr:`pianist.eval.Episode.note_events`.
+
+    Each event is applied at its exact sample (``round(time_s * sample_rate)``): the synthesiser
+    renders up to that sample, then the event is applied. At ``duration_s`` every key and the
+    pedal are released and ``tail_s`` more seconds of release are rendered; events after
+    ``duration_s`` are ignored.
+
+    Args:
+        events: (n, 3) rows (time s, key 0-87 or -1 for the sustain pedal, 1 on / 0 off), in
+            any order (stable-sorted by time here).
+        duration_s: seconds of performance, >= 0.
+        sample_rate: output rate in Hz.
+        soundfont: an .sf2/.sf3 file; None for :func:`default_soundfont`.
+        velocity: MIDI velocity 1-127 of every note (the simulation has no velocity).
+        program: General MIDI program 0-127 of bank 0 (0 is the acoustic grand piano).
+        tail_s: seconds rendered after ``duration_s``, >= 0.
+        gain_db: output gain in dB (0: one mezzo-forte note peaks near 0.08).
+    Returns:
+        (round((duration_s + tail_s) * sample_rate), 2) float32 stereo samples, nominally in
+        [-1, 1] (loud chords may exceed it; :func:`write_wav` clips).
+    Raises:
+        MediaError: bad arguments or events, a missing or unreadable soundfont.
+    """
+    events = np.asarray(events, dtype=np.float64)
+    if events.size == 0:
+        events = events.reshape(0, 3)
+    if events.ndim != 2 or events.shape[1] != 3:
+        raise MediaError(f"note events must have shape (n, 3), not {events.shape}")
+    if not np.all(np.isfinite(events)):
+        raise MediaError("note events contain NaN or Inf")
+    keys = events[:, 1]
+    if np.any(keys != np.round(keys)) or np.any((keys < PEDAL_KEY) | (keys >= NUM_KEYS)):
+        raise MediaError(f"note event keys must be integers in -1..{NUM_KEYS - 1}")
+    velocity = _check_midi_value(velocity, "velocity", low=1)
+    order = np.argsort(events[:, 0], kind="stable")
+    schedule = []
+    for time_s, key, on in events[order].tolist():
+        if key == PEDAL_KEY:
+            schedule.append((time_s, _PEDAL, int(on != 0), 0))
+        else:
+            kind = _ON if on != 0 else _OFF
+            schedule.append((time_s, kind, LOWEST_PITCH + int(key), velocity))
+    return _render(schedule, duration_s, sample_rate, soundfont, program, tail_s, gain_db)
+
+
+def synthesize_song(
+    song: Song,
+    *,
+    sample_rate: int = DEFAULT_SAMPLE_RATE,
+    soundfont: str | os.PathLike[str] | None = None,
+    velocity: int | None = None,
+    program: int = 0,
+    tail_s: float = DEFAULT_TAIL_S,
+    gain_db: float = 0.0,
+) -> np.ndarray:
+    """Render a :class:`pianist.music.Song`: its notes and sustain-pedal intervals.
+
+    Args:
+        song: the song; it lasts ``song.duration_s``.
+        velocity: None to use each note's velocity, or one MIDI velocity 1-127 for all.
+        sample_rate, soundfont, program, tail_s, gain_db: as in :func:`synthesize_events`.
+    Returns:
+        (round((song.duration_s + tail_s) * sample_rate), 2) float32 stereo samples.
+    Raises:
+        MediaError: bad arguments, a missing or unreadable soundfont.
+    """
+    if velocity is not None:
+        velocity = _check_midi_value(velocity, "velocity", low=1)
+    schedule = []
+    for note in song.notes:
+        note_velocity = velocity if velocity is not None else int(note.velocity)
+        schedule.append((float(note.onset_s), _ON, int(note.pitch), note_velocity))
+        schedule.append((float(note.offset_s), _OFF, int(note.pitch), 0))
+    for start, end in song.sustain:
+        schedule.append((float(start), _PEDAL, 1, 0))
+        schedule.append((float(end), _PEDAL, 0, 0))
+    return _render(schedule, song.duration_s, sample_rate, soundfont, program, tail_s, gain_db)
+
+
+def write_wav(
+    samples: np.ndarray, path: str | os.PathLike[str], sample_rate: int = DEFAULT_SAMPLE_RATE
+) -> None:
+    """Write float samples as a 16-bit PCM WAV file, atomically (temporary file + rename).
+
+    Args:
+        samples: (n, 2) stereo or (n,) mono floats in [-1, 1]; values outside are clipped.
+        path: the .wav file to write; its folder must exist.
+        sample_rate: Hz.
+    Raises:
+        MediaError: bad samples or rate, or the file cannot be written.
+    """
+    samples = np.asarray(samples)
+    if samples.ndim == 1:
+        samples = samples[:, None]
+    if samples.ndim != 2 or samples.shape[1] not in (1, 2):
+        raise MediaError(f"samples must have shape (n,) or (n, 2), not {samples.shape}")
+    if not np.all(np.isfinite(samples)):
+        raise MediaError("samples contain NaN or Inf")
+    sample_rate = _check_sample_rate(sample_rate)
+    pcm = np.round(np.clip(samples, -1.0, 1.0) * 32767.0).astype("<i2")
+    path = Path(path)
+    with atomic_output(path, suffix=".wav") as tmp:
+        try:
+            with wave.open(str(tmp), "wb") as w:
+                w.setnchannels(pcm.shape[1])
+                w.setsampwidth(2)
+                w.setframerate(sample_rate)
+                w.writeframes(pcm.tobytes())
+        except OSError as exc:
+            raise MediaError(f"cannot write {path}: {exc.strerror or exc}") from None
+
+
+# --------------------------------------------------------------------------------- internals
+
+
+def _check_midi_value(value: Any, name: str, low: int = 0) -> int:
+    if isinstance(value, bool) or not isinstance(value, int | np.integer):
+        raise MediaError(f"{name} must be an integer, not {value!r}")
+    if not low <= int(value) <= 127:
+        raise MediaError(f"{name} must be in {low}..127, not {value}")
+    return int(value)
+
+
+def _check_sample_rate(sample_rate: Any) -> int:
+    if isinstance(sample_rate, bool) or not isinstance(sample_rate, int | np.integer):
+        raise MediaError(f"sample rate must be an integer number of Hz, not {sample_rate!r}")
+    if not 1000 <= int(sample_rate) <= 384000:
+        raise MediaError(f"sample rate must be in 1000..384000 Hz, not {sample_rate}")
+    return int(sample_rate)
+
+
+def _check_seconds(value: Any, name: str) -> float:
+    try:
+        seconds = float(value)
+    except (TypeError, ValueError):
+        raise MediaError(f"{name} must be a number of seconds, not {value!r}") from None
+    if not math.isfinite(seconds) or seconds < 0:
+        raise MediaError(f"{name} must be a finite number of seconds >= 0, not {value!r}")
+    return seconds
+
+
+def _load_synth(
+    soundfont: str | os.PathLike[str] | None, program: int, sample_rate: int, gain_db: float
+) -> Any:
+    """A TinySoundFont synthesiser with ``program`` of bank 0 on channel 0."""
+    path = default_soundfont() if soundfont is None else Path(soundfont)
+    if not path.is_file():
+        raise MediaError(f"soundfont not found: {path}")
+    try:
+        import tinysoundfont
+    except ImportError:
+        raise MediaError(
+            "audio synthesis needs tinysoundfont: pip install --no-deps 'tinysoundfont>=0.3.7'"
+        ) from None
+    synth = tinysoundfont.Synth(gain=gain_db, samplerate=sample_rate)
+    try:
+        sfid = synth.sfload(str(path))
+    except (RuntimeError, OSError):
+        raise MediaError(f"cannot read soundfont {path}: not a readable SF2/SF3 file") from None
+    if synth.sfpreset_name(sfid, 0, program) is None:
+        raise MediaError(f"soundfont {path} has no program {program} in bank 0")
+    try:
+        synth.program_select(_CHANNEL, sfid, 0, program)
+    except RuntimeError as exc:
+        raise MediaError(f"soundfont {path}: cannot select program {program}: {exc}") from exc
+    return synth
+
+
+def _render(
+    schedule: Iterable[tuple[float, int, int, int]],
+    duration_s: float,
+    sample_rate: int,
+    soundfont: str | os.PathLike[str] | None,
+    program: int,
+    tail_s: float,
+    gain_db: float,
+) -> np.ndarray:
+    """Render (time s, kind, pitch or pedal state, velocity) events; see synthesize_events."""
+    duration_s = _check_seconds(duration_s, "duration")
+    tail_s = _check_seconds(tail_s, "tail")
+    sample_rate = _check_sample_rate(sample_rate)
+    program = _check_midi_value(program, "program")
+    try:
+        gain_db = float(gain_db)
+    except (TypeError, ValueError):
+        raise MediaError(f"gain must be a number of dB, not {gain_db!r}") from None
+    if not math.isfinite(gain_db):
+        raise MediaError(f"gain must be a finite number of dB, not {gain_db}")
+    synth = _load_synth(soundfont, program, sample_rate, gain_db)
+
+    total = round((duration_s + tail_s) * sample_rate)
+    end = min(round(duration_s * sample_rate), total)
+    out = np.zeros((total, 2), dtype=np.float32)
+    done = 0  # samples rendered so far
+
+    def render_until(sample: int) -> None:
+        nonlocal done
+        if sample > done:
+            # Render straight into the output array (a contiguous block of float32 pairs).
+            synth.generate(sample - done, buffer=memoryview(out[done:sample]).cast("B"))
+            done = sample
+
+    down: set[int] = set()  # pitches whose key is down
+    held: set[int] = set()  # pitches released while the pedal was down, still sounding
+    pedal = False
+    # Time order; events at the very same time in kind order (see _PEDAL, _OFF, _ON).
+    ordered = sorted(
+        (max(0, round(t * sample_rate)), t, kind, value, vel) for t, kind, value, vel in schedule
+    )
+    for sample, _, kind, value, vel in ordered:
+        if sample > end:
+            break
+        render_until(sample)
+        if kind == _PEDAL:
+            pedal = bool(value)
+            if not pedal:
+                for pitch in held - down:
+                    synth.noteoff(_CHANNEL, pitch)
+                held.clear()
+        elif kind == _ON:
+            if value in down or value in held:
+                # Restrike: end the old voice first (TinySoundFont would layer a second one).
+                synth.noteoff(_CHANNEL, value)
+                held.discard(value)
+            synth.noteon(_CHANNEL, value, vel)
+            down.add(value)
+        elif value in down:
+            down.discard(value)
+            if pedal:
+                held.add(value)
+            else:
+                synth.noteoff(_CHANNEL, value)
+    render_until(end)
+    synth.notes_off(_CHANNEL)  # the performance is over: release everything into the tail
+    render_until(total)
+    return out

@@ -1,0 +1,227 @@
+"""Audio synthesis with the bundled General MIDI SoundFont, and WAV output."""
+
+from __future__ import annotations
+
+import wave
+
+import numpy as np
+import pytest
+
+from pianist.media import (
+    MediaError,
+    default_soundfont,
+    synthesize_events,
+    synthesize_song,
+    write_wav,
+)
+from pianist.music import Note, Song
+
+SR = 22050  # half the default rate: the tests only need pitch and loudness
+C4_KEY = 60 - 21  # key index of middle C (MIDI 60)
+A4_KEY = 69 - 21
+
+
+# tinysoundfont's wheel declares pyaudio (live playback only, never used here), which cannot
+# be built without PortAudio headers, so it is installed with --no-deps and may be absent.
+def _has_tinysoundfont() -> bool:
+    try:
+        import tinysoundfont  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+needs_synth = pytest.mark.skipif(
+    not _has_tinysoundfont(), reason="tinysoundfont not installed (pip install --no-deps)"
+)
+
+
+def _spectrum(samples: np.ndarray, seconds: float) -> tuple[np.ndarray, np.ndarray]:
+    mono = samples[: round(seconds * SR)].mean(axis=1)
+    magnitude = np.abs(np.fft.rfft(mono * np.hanning(len(mono))))
+    return np.fft.rfftfreq(len(mono), 1 / SR), magnitude
+
+
+def _rms(samples: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(np.square(samples, dtype=np.float64))))
+
+
+def test_default_soundfont_is_the_pretty_midi_file() -> None:
+    path = default_soundfont()
+    assert path.name == "TimGM6mb.sf2" and path.is_file()
+    assert path.read_bytes()[:4] == b"RIFF"
+
+
+@needs_synth
+def test_middle_c_has_the_right_pitch() -> None:
+    events = np.array([[0.0, C4_KEY, 1.0], [0.8, C4_KEY, 0.0]])
+    samples = synthesize_events(events, 1.0, sample_rate=SR)
+    freqs, mag = _spectrum(samples, 0.5)
+    # This piano's C4 has a second harmonic about as strong as the fundamental, so take the
+    # fundamental as the lowest strong peak rather than the single largest one.
+    band = (freqs > 50) & (freqs < 2000)
+    strong = freqs[band][mag[band] >= 0.5 * mag[band].max()]
+    assert strong.min() == pytest.approx(261.63, rel=0.02)
+    dominant = freqs[band][np.argmax(mag[band])]
+    harmonic = dominant / 261.63
+    assert harmonic == pytest.approx(round(harmonic), rel=0.02)
+
+
+@needs_synth
+def test_a4_dominant_frequency() -> None:
+    samples = synthesize_events(np.array([[0.0, A4_KEY, 1.0]]), 0.6, sample_rate=SR)
+    freqs, mag = _spectrum(samples, 0.5)
+    assert freqs[np.argmax(mag)] == pytest.approx(440.0, rel=0.02)
+
+
+@needs_synth
+def test_length_is_duration_plus_tail_and_dtype() -> None:
+    events = np.array([[0.1, C4_KEY, 1.0], [0.3, C4_KEY, 0.0]])
+    samples = synthesize_events(events, 0.75, sample_rate=SR)
+    assert samples.shape == (round(1.75 * SR), 2) and samples.dtype == np.float32
+    short = synthesize_events(events, 0.75, sample_rate=SR, tail_s=0.25)
+    assert short.shape == (SR, 2)
+
+
+@needs_synth
+def test_no_events_is_silence() -> None:
+    samples = synthesize_events(np.zeros((0, 3)), 0.5, sample_rate=SR)
+    assert samples.shape == (round(1.5 * SR), 2)
+    assert not samples.any()
+
+
+@needs_synth
+def test_note_starts_at_its_event_time() -> None:
+    samples = synthesize_events(np.array([[0.5, C4_KEY, 1.0]]), 1.0, sample_rate=SR)
+    assert not samples[: round(0.5 * SR)].any()
+    assert _rms(samples[round(0.5 * SR) : round(0.6 * SR)]) > 1e-3
+
+
+@needs_synth
+def test_sustain_pedal_holds_a_released_note() -> None:
+    note = [[0.0, C4_KEY, 1.0], [0.3, C4_KEY, 0.0]]
+    pedal = [[0.0, -1, 1.0], [1.0, -1, 0.0]]
+    dry = synthesize_events(np.array(note), 1.2, sample_rate=SR)
+    held = synthesize_events(np.array(note + pedal), 1.2, sample_rate=SR)
+    window = slice(round(0.5 * SR), round(0.95 * SR))  # after the note-off, pedal still down
+    assert _rms(held[window]) > 10 * _rms(dry[window])
+    # Before the note-off both are the same note.
+    np.testing.assert_allclose(held[: round(0.29 * SR)], dry[: round(0.29 * SR)], atol=1e-6)
+    # Lifting the pedal releases it: long after, both have faded.
+    assert _rms(held[round(1.9 * SR) :]) < 0.1 * _rms(held[window])
+
+
+@needs_synth
+def test_song_with_sustain_interval() -> None:
+    notes = (Note(60, 0.0, 0.3), Note(64, 0.0, 0.3, velocity=100))
+    dry = synthesize_song(Song(notes=notes), sample_rate=SR)
+    held = synthesize_song(Song(notes=notes, sustain=((0.0, 1.0),)), sample_rate=SR)
+    assert dry.shape == (round(1.3 * SR), 2) and held.shape == (round(2.0 * SR), 2)
+    window = slice(round(0.5 * SR), round(0.95 * SR))
+    assert _rms(held[window]) > 10 * _rms(dry[window])
+
+
+@needs_synth
+def test_velocity_changes_loudness() -> None:
+    events = np.array([[0.0, C4_KEY, 1.0]])
+    soft = synthesize_events(events, 0.5, sample_rate=SR, velocity=30)
+    loud = synthesize_events(events, 0.5, sample_rate=SR, velocity=120)
+    assert _rms(loud) > 1.5 * _rms(soft)
+
+
+@needs_synth
+def test_explicit_soundfont_path_matches_default() -> None:
+    events = np.array([[0.0, C4_KEY, 1.0], [0.2, C4_KEY, 0.0]])
+    implicit = synthesize_events(events, 0.3, sample_rate=SR)
+    explicit = synthesize_events(events, 0.3, sample_rate=SR, soundfont=str(default_soundfont()))
+    np.testing.assert_array_equal(implicit, explicit)
+
+
+def test_missing_soundfont_raises(tmp_path) -> None:
+    with pytest.raises(MediaError, match="soundfont not found"):
+        synthesize_events(np.zeros((0, 3)), 0.1, soundfont=tmp_path / "nope.sf2")
+
+
+@needs_synth
+def test_unreadable_soundfont_raises(tmp_path) -> None:
+    bogus = tmp_path / "bogus.sf2"
+    bogus.write_bytes(b"not a soundfont")
+    with pytest.raises(MediaError, match="cannot read soundfont"):
+        synthesize_events(np.zeros((0, 3)), 0.1, soundfont=bogus)
+
+
+@pytest.mark.parametrize(
+    ("events", "duration", "kwargs", "match"),
+    [
+        (np.zeros((2, 2)), 1.0, {}, "shape"),
+        (np.array([[0.0, 88, 1.0]]), 1.0, {}, "keys"),
+        (np.array([[0.0, 1.5, 1.0]]), 1.0, {}, "keys"),
+        (np.array([[np.nan, 1, 1.0]]), 1.0, {}, "NaN"),
+        (np.zeros((0, 3)), -1.0, {}, "duration"),
+        (np.zeros((0, 3)), 1.0, {"velocity": 0}, "velocity"),
+        (np.zeros((0, 3)), 1.0, {"program": 128}, "program"),
+        (np.zeros((0, 3)), 1.0, {"sample_rate": 0}, "sample rate"),
+    ],
+)
+def test_bad_arguments_raise(events, duration, kwargs, match) -> None:
+    with pytest.raises(MediaError, match=match):
+        synthesize_events(events, duration, **kwargs)
+
+
+def test_wav_round_trip(tmp_path) -> None:
+    t = np.arange(SR // 2) / SR
+    tone = 0.5 * np.sin(2 * np.pi * 440 * t)
+    samples = np.stack([tone, -tone], axis=1).astype(np.float32)
+    samples[0] = (2.0, -2.0)  # out of range: clipped
+    path = tmp_path / "tone.wav"
+    write_wav(samples, path, SR)
+    with wave.open(str(path), "rb") as w:
+        assert w.getnchannels() == 2
+        assert w.getframerate() == SR
+        assert w.getsampwidth() == 2
+        assert w.getnframes() == len(samples)
+        pcm = np.frombuffer(w.readframes(w.getnframes()), dtype="<i2").reshape(-1, 2)
+    assert tuple(pcm[0]) == (32767, -32767)
+    np.testing.assert_allclose(pcm[1:] / 32767.0, samples[1:], atol=1e-4)
+    assert not list(tmp_path.glob(".tone.wav.*"))  # no temporary file left behind
+
+
+def test_wav_mono_and_bad_input(tmp_path) -> None:
+    write_wav(np.zeros(100), tmp_path / "mono.wav", SR)
+    with wave.open(str(tmp_path / "mono.wav"), "rb") as w:
+        assert w.getnchannels() == 1 and w.getnframes() == 100
+    with pytest.raises(MediaError, match="shape"):
+        write_wav(np.zeros((10, 3)), tmp_path / "bad.wav", SR)
+    with pytest.raises(MediaError, match="cannot write"):
+        write_wav(np.zeros(10), tmp_path / "missing-dir" / "x.wav", SR)
+
+
+@needs_synth
+def test_key_pressed_again_at_release_time_keeps_sounding() -> None:
+    once = [[0.0, C4_KEY, 1.0], [0.3, C4_KEY, 0.0]]
+    again = once + [[0.3, C4_KEY, 1.0]]
+    window = slice(round(0.5 * SR), round(0.95 * SR))
+    short = synthesize_events(np.array(once), 1.0, sample_rate=SR)
+    restruck = synthesize_events(np.array(again), 1.0, sample_rate=SR)
+    assert _rms(restruck[window]) > 10 * _rms(short[window])
+
+
+@needs_synth
+def test_episode_note_events_render() -> None:
+    from pianist.env import PianoEnv
+    from pianist.eval import run_episode
+
+    class Random:
+        def reset(self, env, seed=None) -> None:
+            self._rng = np.random.default_rng(seed)
+            self._shape = env.action_space.shape
+
+        def act(self, observation) -> np.ndarray:
+            return self._rng.uniform(-1, 1, self._shape).astype(np.float32)
+
+    env = PianoEnv(Song(notes=(Note(60, 0.0, 0.5),), name="one"), physics="fast")
+    ep = run_episode(env, Random(), seed=0)
+    assert (ep.note_events[:, 1] == -1).any()  # random pedal presses are in the events
+    samples = synthesize_events(ep.note_events, ep.end_time_s, sample_rate=SR)
+    assert samples.shape == (round((ep.end_time_s + 1.0) * SR), 2)
+    assert np.isfinite(samples).all()
