@@ -2,6 +2,7 @@
 
 import json
 import subprocess
+import wave
 import sys
 from pathlib import Path
 
@@ -164,3 +165,69 @@ def test_failed_run_keeps_previous_results(tmp_path):
 def _write(path: Path, data: bytes) -> str:
     path.write_bytes(data)
     return str(path)
+
+
+def test_play_writes_audio_pianoroll_and_video(tmp_path):
+    import imageio_ffmpeg
+
+    out = tmp_path / "media"
+    args = ["play", "c-major-chords", "--controller", "zero", "--physics", "fast"]
+    args += ["--out", str(out), "--video", "--fps", "10", "--size", "64", "96"]
+    result = run(*args)
+    assert result.returncode == 0, result.stderr
+    for name in ("metrics.json", "performance.mid", "actions.npy", "pianoroll.png"):
+        assert (out / name).stat().st_size > 0
+    with wave.open(str(out / "score.wav")) as score:
+        # The score (4 s) plus the synthesiser's release tail, at 44.1 kHz.
+        assert score.getframerate() == 44100 and score.getnframes() / 44100 >= 4.0
+    with wave.open(str(out / "performance.wav")) as performance:
+        assert performance.getnframes() / 44100 >= 81 * 0.05
+    frames, _ = imageio_ffmpeg.count_frames_and_secs(str(out / "performance.mp4"))
+    assert frames == 41  # 4.05 s at 10 fps, both ends included
+    probe = subprocess.run(
+        [imageio_ffmpeg.get_ffmpeg_exe(), "-hide_banner", "-i", str(out / "performance.mp4")],
+        capture_output=True,
+        text=True,
+    )
+    assert "Audio: aac" in probe.stderr and "64x96" not in probe.stderr
+    assert "96x64" in probe.stderr  # ffmpeg reports width x height
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        (["--soundfont", "/no/such/font.sf2"], "soundfont not found"),
+        (["--video", "--camera", "ceiling"], "unknown camera"),
+        (["--video", "--size", "63", "64"], "even"),
+    ],
+)
+def test_bad_media_options_fail_before_playing(tmp_path, extra, message):
+    out = tmp_path / "o"
+    result = run("play", "c-major-chords", "--controller", "zero", "--out", str(out), *extra)
+    assert result.returncode == 1
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and message in lines[0], result.stderr
+    assert not (out / "metrics.json").exists()
+
+
+def test_corrupt_soundfont_is_refused(tmp_path):
+    font = tmp_path / "bad.sf2"
+    font.write_bytes(b"RIFF not really a soundfont")
+    result = run("play", "c-major-chords", "--out", str(tmp_path / "o"), "--soundfont", str(font))
+    assert result.returncode == 1 and "soundfont" in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1
+
+
+def test_unfingered_midi_needs_fingering_for_the_planner(tmp_path):
+    path = tmp_path / "plain.mid"
+    midi = mido.MidiFile()
+    track = mido.MidiTrack()
+    track += [
+        mido.Message("note_on", note=60, velocity=80, time=0),
+        mido.Message("note_off", note=60, velocity=0, time=480),
+    ]
+    midi.tracks.append(track)
+    midi.save(path)
+    result = run("play", str(path), "--out", str(tmp_path / "o"))
+    assert result.returncode == 1 and "no fingering" in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1

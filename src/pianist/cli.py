@@ -6,11 +6,12 @@ Every expected failure ends with one readable line on stderr and a non-zero exit
 
 from __future__ import annotations
 
+import os
 import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
 import tyro
 
@@ -69,30 +70,66 @@ class Info:
 
 @dataclass(frozen=True)
 class Play:
-    """Play a song with a controller and write metrics.json, performance.mid and actions.npy."""
+    """Play a song and write its metrics, MIDI, actions, audio, piano roll and (optionally) video.
+
+    Writes to OUT: metrics.json, performance.mid, actions.npy, performance.wav, score.wav,
+    pianoroll.png and, with --video, performance.mp4 (every file written atomically).
+    """
 
     song: tyro.conf.Positional[str]
     """A built-in song name, a MIDI file (.mid) or a PIG fingering file (.txt)."""
-    controller: str = "random"
-    """random, zero, or replay:ACTIONS.npy."""
+    controller: str = "planner"
+    """planner, random, zero, or replay:ACTIONS.npy."""
     out: Path = Path("out")
     """Output directory (created if missing)."""
     physics: Literal["faithful", "fast"] = "faithful"
     """Physics preset."""
     seed: int = 0
+    video: bool = False
+    """Also render performance.mp4 (with the performance's audio)."""
+    camera: str = "closeup"
+    """Video camera: closeup, left, right, back, egocentric or topdown."""
+    fps: float = 30.0
+    """Video frames per second."""
+    size: tuple[int, int] = (480, 640)
+    """Video frame height and width in pixels (even numbers)."""
+    soundfont: Path | None = None
+    """An .sf2/.sf3 SoundFont for the audio (default: the General MIDI one pretty_midi ships)."""
+    audio: bool = True
+    """Write performance.wav and score.wav."""
 
     def run(self) -> None:
+        if self.video and sys.platform.startswith("linux"):
+            # Offscreen rendering without a display; must be set before mujoco is imported.
+            os.environ.setdefault("MUJOCO_GL", "egl")
         from pianist.control import make_controller
         from pianist.env import PianoEnv
         from pianist.eval import run_episode
         from pianist.eval.episode import save_npy_atomic, write_json_atomic
-        from pianist.music import write_midi
+        from pianist.music import load_song, write_midi
 
+        # Everything that can be checked before the (long) episode is checked first.
+        song = load_song(self.song)
+        if self.controller == "planner" and song.fingering_coverage < 1.0:
+            missing = sum(n.finger is None for n in song.notes)
+            raise CliError(
+                f"{self.song}: {missing} of {song.num_notes} notes have no fingering; the "
+                "planner needs a finger for every note (use a PIG file or a fingered song)"
+            )
         controller = make_controller(self.controller)
+        if self.audio:
+            from pianist.media import check_soundfont
+
+            check_soundfont(self.soundfont)
         _prepare_dir(self.out)
-        env = PianoEnv(self.song, physics=self.physics)
+        env = PianoEnv(song, physics=self.physics)
+        if self.video:
+            from pianist.media import check_video_options
+
+            check_video_options(env.model, self.camera, self.fps, self.size)
+
         start = time.perf_counter()
-        episode = run_episode(env, controller, seed=self.seed)
+        episode = run_episode(env, controller, seed=self.seed, progress=sys.stderr.isatty())
         wall = time.perf_counter() - start
         metrics = episode.metrics()
         metrics.update(
@@ -105,12 +142,46 @@ class Play:
         )
         save_npy_atomic(episode.actions, self.out / "actions.npy")
         write_midi(episode.performance(), self.out / "performance.mid")
+        self._write_media(env, song, episode)
         write_json_atomic(metrics, self.out / "metrics.json")
         _out(
             f"{self.song}: precision {metrics['precision']:.3f}  recall {metrics['recall']:.3f}  "
             f"F1 {metrics['f1']:.3f}  sustain F1 {metrics['sustain_f1']:.3f}  "
             f"({metrics['steps']} steps, {metrics['realtime_factor']:.1f}x real time) -> {self.out}"
         )
+
+    def _write_media(self, env: Any, song: Any, episode: Any) -> None:
+        from pianist.media import (
+            plot_pianoroll,
+            render_episode,
+            synthesize_events,
+            synthesize_song,
+            write_wav,
+        )
+
+        plot_pianoroll(
+            episode,
+            self.out / "pianoroll.png",
+            title=f"{self.song} ({self.controller}, {self.physics} physics)",
+            weights=env.config.rewards.as_dict(),
+        )
+        performance = None
+        if self.audio:
+            duration = episode.num_steps * episode.control_timestep_s
+            performance = synthesize_events(episode.note_events, duration, soundfont=self.soundfont)
+            write_wav(performance, self.out / "performance.wav")
+            write_wav(synthesize_song(song, soundfont=self.soundfont), self.out / "score.wav")
+        if self.video:
+            render_episode(
+                env,
+                episode,
+                self.out / "performance.mp4",
+                camera=self.camera,
+                fps=self.fps,
+                size=self.size,
+                audio=performance,
+                progress=sys.stderr.isatty(),
+            )
 
 
 def _prepare_dir(path: Path) -> None:
@@ -157,9 +228,11 @@ def main(argv: list[str] | None = None) -> int:
 def _expected_error(exc: Exception) -> str | None:
     """One line for failures caused by input or environment, None for bugs."""
     from pianist.env import SimulationUnstableError
+    from pianist.media import MediaError
     from pianist.music import MusicError
 
-    if isinstance(exc, CliError | MusicError | SimulationUnstableError | FileNotFoundError):
+    expected = CliError | MusicError | MediaError | SimulationUnstableError | FileNotFoundError
+    if isinstance(exc, expected):
         return " ".join(str(exc).split())
     if isinstance(exc, OSError):
         return f"{exc.strerror or exc}: {exc.filename}" if exc.filename else str(exc)

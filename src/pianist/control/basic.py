@@ -75,11 +75,17 @@ class ReplayController:
 
 
 def make_controller(spec: str, **kwargs: Any) -> Controller:
-    """``random``, ``zero`` or ``replay:PATH.npy`` -> a controller."""
+    """A controller from its name: ``planner``, ``random``, ``zero`` or ``replay:PATH.npy``."""
+    if spec == "planner":
+        from pianist.control.planner import IKPlanner
+
+        return IKPlanner()
     if spec == "random":
         return RandomController()
     if spec == "zero":
         return ZeroController()
     if spec.startswith("replay:"):
         return ReplayController(spec.removeprefix("replay:"))
-    raise ValueError(f"unknown controller {spec!r}; use random, zero or replay:ACTIONS.npy")
+    raise ValueError(
+        f"unknown controller {spec!r}; use planner, random, zero or replay:ACTIONS.npy"
+    )

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import time
 from typing import Any
 
 import numpy as np
@@ -9,13 +10,17 @@ import numpy as np
 from pianist.eval.episode import Episode
 
 
-def run_episode(env: Any, controller: Any, seed: int | None = 0) -> Episode:
+def run_episode(
+    env: Any, controller: Any, seed: int | None = 0, *, progress: bool = False
+) -> Episode:
     """Play one full episode.
 
     Args:
         env: a :class:`pianist.env.PianoEnv` (or anything with its step/info contract).
         controller: an object with ``reset(env, seed)`` and ``act(observation) -> action``.
         seed: passed to ``env.reset`` and to the controller.
+        progress: show a progress bar on stderr with the speed as a multiple of real time
+            (controller included).
     Returns:
         The :class:`Episode` record.
     """
@@ -25,6 +30,8 @@ def run_episode(env: Any, controller: Any, seed: int | None = 0) -> Episode:
     terms: dict[str, list[float]] = {}
     events: list[tuple[float, int, bool]] = []
     qpos = [env.data.qpos.copy()]
+    bar = _progress_bar(env) if progress else None
+    start = time.perf_counter()
     done = False
     while not done:
         action = np.asarray(controller.act(observation), dtype=np.float32)
@@ -40,6 +47,14 @@ def run_episode(env: Any, controller: Any, seed: int | None = 0) -> Episode:
             terms.setdefault(name, []).append(value)
         events.extend(info["note_events"])
         qpos.append(env.data.qpos.copy())
+        if bar is not None:
+            bar.update(1)
+            if bar.n % 20 == 0 or done:
+                elapsed = time.perf_counter() - start
+                simulated = bar.n * env.config.control_timestep_s
+                bar.set_postfix_str(f"{simulated / max(elapsed, 1e-9):.1f}x real time")
+    if bar is not None:
+        bar.close()
     return Episode(
         actions=np.stack(actions),
         active_keys=np.stack(active),
@@ -53,3 +68,10 @@ def run_episode(env: Any, controller: Any, seed: int | None = 0) -> Episode:
         end_time_s=float(env.data.time),
         qpos=np.stack(qpos),
     )
+
+
+def _progress_bar(env: Any) -> Any:
+    from tqdm import tqdm
+
+    total = getattr(env.unwrapped, "num_steps", None)
+    return tqdm(total=total, unit="step", desc="playing", leave=False, dynamic_ncols=True)

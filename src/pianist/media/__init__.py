@@ -6,13 +6,27 @@ offscreen OpenGL context: on a machine without a display set ``MUJOCO_GL=egl`` (
 before ``mujoco`` is first imported.
 """
 
-from pianist.media.audio import default_soundfont, synthesize_events, synthesize_song, write_wav
+from pianist.media.audio import (
+    check_soundfont,
+    default_soundfont,
+    synthesize_events,
+    synthesize_song,
+    write_wav,
+)
 from pianist.media.errors import MediaError
 from pianist.media.plots import pianoroll_counts, plot_pianoroll
-from pianist.media.video import frame_times, interpolate_qpos, key_colours, render_episode
+from pianist.media.video import (
+    check_video_options,
+    frame_times,
+    interpolate_qpos,
+    key_colours,
+    render_episode,
+)
 
 __all__ = [
     "MediaError",
+    "check_soundfont",
+    "check_video_options",
     "default_soundfont",
     "frame_times",
     "interpolate_qpos",

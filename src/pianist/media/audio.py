@@ -215,6 +215,18 @@ def _check_seconds(value: Any, name: str) -> float:
     return seconds
 
 
+def check_soundfont(soundfont: str | os.PathLike[str] | None, program: int = 0) -> Path:
+    """The soundfont that will be used, checked to load and to hold ``program``.
+
+    Returns:
+        The path (the default soundfont when ``soundfont`` is None).
+    Raises:
+        MediaError: a missing or unreadable file, no such program, no tinysoundfont.
+    """
+    _load_synth(soundfont, _check_midi_value(program, "program"), DEFAULT_SAMPLE_RATE, 0.0)
+    return default_soundfont() if soundfont is None else Path(soundfont)
+
+
 def _load_synth(
     soundfont: str | os.PathLike[str] | None, program: int, sample_rate: int, gain_db: float
 ) -> Any:

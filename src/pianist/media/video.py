@@ -107,11 +107,7 @@ def render_episode(
     import mujoco
 
     model_in = env.model
-    cameras = sorted(model_in.camera(i).name for i in range(model_in.ncam))
-    if camera not in cameras:
-        raise MediaError(f"unknown camera {camera!r}; choose from {', '.join(cameras)}")
-    height, width = _check_size(size, model_in)
-    fps = _check_fps(fps)
+    height, width, fps = check_video_options(model_in, camera, fps, size)
     qpos = _check_qpos(episode, model_in.nq)
     times = frame_times(episode.num_steps, episode.control_timestep_s, fps)
 
@@ -149,6 +145,26 @@ def render_episode(
     finally:
         renderer.close()
     return len(times)
+
+
+def check_video_options(
+    model: Any, camera: str, fps: float, size: tuple[int, int]
+) -> tuple[int, int, float]:
+    """Validate video options before an episode is played, so a typo fails at once.
+
+    Args:
+        model: the ``mujoco.MjModel`` that will be rendered.
+        camera, fps, size: as in :func:`render_episode`.
+    Returns:
+        (height, width, fps) as ints and a float.
+    Raises:
+        MediaError: an unknown camera, a bad frame rate or size.
+    """
+    cameras = sorted(model.camera(i).name for i in range(model.ncam))
+    if camera not in cameras:
+        raise MediaError(f"unknown camera {camera!r}; choose from {', '.join(cameras)}")
+    height, width = _check_size(size, model)
+    return height, width, _check_fps(fps)
 
 
 def interpolate_qpos(
