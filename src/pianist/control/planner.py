@@ -2,17 +2,19 @@
 
 Each control step it
 
-1. plans where each forearm should be: for every goal frame, the slide position that puts the
-   assigned fingers over their keys (fingertip offsets measured in the rest pose), held until
-   the hand's next note, and commanded ``forearm_lead_s`` ahead so the hand arrives in time;
-2. sets fingertip targets: the assigned fingertip pressed into each key due at the coming
-   frame, fingers due within ``hover_lead_s`` hovering just above their keys, the others lifted
-   clear of the keyboard;
-3. solves damped least squares on the fingertip sites' Jacobians (``mujoco.mj_jacSite``) over
-   each hand's actuated joints, with the coupled J1+J2 finger tendons as one DoF, a pull
-   towards a rest posture, and joint limits as clipping, on a scratch ``MjData`` whose forearms
-   sit where they were commanded to go;
-4. sends those joint targets as the position-servo controls; the pedal follows the goal.
+1. plans where each forearm should be: for every goal frame, the slide position along the
+   keyboard that puts the assigned fingers over their keys, held until the hand's next note
+   and commanded ``forearm_lead_s`` ahead so the hand arrives in time; with the optional
+   height slide (``tz``) the forearm is held low enough for the thumb to reach a key's bottom;
+2. gives every fingertip a target: the assigned fingertip pressed below the top of each key
+   due at the coming frame (once it is over the key), fingers due soon hovering above their
+   keys, the others lifted to a fixed posture clear of the keyboard;
+3. solves each finger's inverse kinematics with the wrist held still, so the five fingers are
+   independent small problems: the nearest of a few thousand sampled postures of that finger
+   (computed once at reset, which avoids the local minima the thumb falls into), then a few
+   damped least-squares iterations on ``mujoco.mj_jacSite`` over the finger's actuated joints
+   (a J1+J2 tendon counts as one joint, its angle split evenly), clipped to the joint limits;
+4. sends those angles as the position-servo controls; the pedal follows the goal.
 """
 
 from __future__ import annotations
@@ -26,34 +28,54 @@ import numpy as np
 from pianist.sim import constants as C
 
 FINGERS_PER_HAND = 5
+FINGER_PREFIXES = ("TH", "FF", "MF", "RF", "LF")
 
 
 @dataclass(frozen=True)
 class PlannerConfig:
-    """Tuning of :class:`IKPlanner`; lengths in m, times in s."""
+    """Tuning of :class:`IKPlanner`; lengths in m, times in s, angles in rad."""
 
-    press_depth_m: float = 0.014
-    """How far below the key's top surface the fingertip contact is sent when pressing."""
-    hover_height_m: float = 0.012
-    """Clearance above the key top of a finger that is due soon."""
-    lift_height_m: float = 0.03
+    white_press_depth_m: float = 0.02
+    """How far below a white key's top the fingertip is sent: past the key's travel, so the
+    position servo keeps pushing it down."""
+    black_press_depth_m: float = 0.025
+    """The same for a black key (shorter lever, so it needs more force)."""
+    hover_height_m: float = 0.01
+    """Clearance above the key top of a finger that is due soon, or not yet over its key."""
+    lift_height_m: float = 0.035
     """Clearance above the white keys of a finger that is not due."""
+    white_press_x_m: float = 0.045
+    """Where along a white key (x from its centre, towards the player) a finger presses it,
+    in front of the black keys."""
+    thumb_white_press_x_m: float = 0.064
+    """The same for the thumb, which reaches lowest near the front edge."""
+    black_press_x_m: float = 0.003
+    """Where along a black key (world x) a finger presses it, near its front end."""
+    hand_height_m: float = -0.03
+    """Height command of the forearm's ``tz`` slide (when the scene has one)."""
+    wrist_pose: tuple[float, float] = (0.0, 0.0)
+    """WRJ2 and WRJ1, held constant."""
     press_lead_frames: int = 1
-    """Frames ahead of the scored frame whose keys the fingers go for."""
+    """Frames ahead of the scored frame whose keys the fingers go for (servo lag)."""
     hover_lead_s: float = 0.25
     align_tolerance_m: float = 0.006
-    """How close (horizontally) to its key a finger must be before it presses."""
+    """How close (across the keys) to a white key's press point a finger must be before it
+    presses, half that for a black key: a finger that lands beside its key sticks to the
+    neighbour by friction."""
     forearm_lead_s: float = 0.2
     forearm_separation_m: float = 0.21
     """Closest the two forearm roots may come along the keyboard (they collide below ~0.15)."""
-    iterations: int = 6
-    damping: float = 0.005
-    """Levenberg damping of the least squares (1/rad scale)."""
+    thumb_offset_m: float = 0.03
+    """How far the thumb presses to the left (right hand; mirrored for the left) of the
+    index finger's rest position: the thumb, without its rotation joint, reaches key depth
+    only under the side of the palm."""
+    samples: int = 4000
+    """Sampled postures per finger for the nearest-posture start of the IK."""
+    iterations: int = 3
+    damping: float = 0.01
     rest_weight: float = 1e-4
-    """Pull of every joint towards its rest angle (per rad^2, against fingertip error in m^2)."""
-    idle_weight: float = 0.4
-    """Weight of a lifted finger's target against a pressing finger's (1)."""
-    step_limit_rad: float = 0.4
+    """Pull towards the sampled start posture (per rad^2, against tip error in m^2)."""
+    step_limit_rad: float = 0.3
     """Largest change of one joint in one IK iteration."""
 
 
@@ -61,7 +83,9 @@ class IKPlanner:
     """Plays the song of a :class:`pianist.env.PianoEnv` from its goal frames and fingering.
 
     Use like any controller: ``reset(env)``, then ``act(observation)`` each step. Needs every
-    note fingered and the reduced or full action space with the ``tx`` forearm slide.
+    note fingered and the ``tx`` forearm slide; works with the reduced or the full action
+    space, and plays thumb notes on white keys only when the scene has the ``tz`` slide
+    (see :func:`planner_env_options`).
     """
 
     def __init__(self, config: PlannerConfig | None = None) -> None:
@@ -71,140 +95,160 @@ class IKPlanner:
 
     def reset(self, env: gym.Env, seed: int | None = None) -> None:
         base = env.unwrapped
-        self.env = base
-        self.model: mujoco.MjModel = base.model
-        self.scratch = mujoco.MjData(self.model)
         goal = base.goal
-        due = goal.keys
-        if np.any(due & (goal.fingers < 0)):
+        if np.any(goal.keys & (goal.fingers < 0)):
             raise ValueError(
                 "the planner needs a finger for every note; this song has unfingered notes"
             )
+        self.env = base
+        self.model: mujoco.MjModel = base.model
+        self.scratch = mujoco.MjData(self.model)
         self.goal = goal
         self.dt = base.config.control_timestep_s
-        m = self.model
+        cfg, m = self.config, self.model
         mujoco.mj_resetData(m, self.scratch)
         mujoco.mj_kinematics(m, self.scratch)
-        self.key_target = self.scratch.site_xpos[base.scene.key_sites].copy()
+        # Press point and top height of every key, (88, 3) and (88,).
         self.key_top_z = np.where(
             C.BLACK_KEY_MASK,
             C.WHITE_KEY_HEIGHT_M + C.BLACK_KEY_TOP_ABOVE_WHITE_M,
             C.WHITE_KEY_HEIGHT_M,
         )
-        self.hands = [_HandModel(m, self.scratch, base, hand) for hand in base.scene.hands]
+        self.key_point = self.scratch.site_xpos[base.scene.key_sites].copy()
+        self.key_point[:, 0] = np.where(C.BLACK_KEY_MASK, cfg.black_press_x_m, cfg.white_press_x_m)
+        self.key_depth = np.where(
+            C.BLACK_KEY_MASK, cfg.black_press_depth_m, cfg.white_press_depth_m
+        )
+        rng = np.random.default_rng(0)  # the posture samples do not depend on the episode
+        self.hands = [_Hand(m, self.scratch, hand, cfg, rng) for hand in base.scene.hands]
         for hand in self.hands:
-            hand.calibrate(m, self.scratch, self.key_target, self.key_top_z, self.config)
-            hand.plan_forearm(goal, self.key_target, self.dt, self.config)
+            hand.plan_forearm(goal, self.key_point)
         if len(self.hands) == 2:
-            _keep_forearms_apart(*self.hands, self.config.forearm_separation_m)
-        self.nu = m.nu
+            _keep_forearms_apart(*self.hands, cfg.forearm_separation_m)
 
     # ----------------------------------------------------------------------------- acting
 
     def act(self, observation: object = None) -> np.ndarray:
         cfg, env, m, scratch = self.config, self.env, self.model, self.scratch
-        t = env.step_index
-        T = self.goal.num_frames
+        t, T = env.step_index, self.goal.num_frames
         ctrl = np.array(env.data.ctrl)
         scratch.qpos[:] = env.data.qpos
-        for hand in self.hands:
-            hand.command_forearm(scratch, ctrl, t, self.dt, cfg)
-        _kinematics(m, scratch)
         press_frame = min(t + cfg.press_lead_frames, T - 1)
-        hover_frames = range(
-            press_frame + 1, min(T, press_frame + 1 + round(cfg.hover_lead_s / self.dt))
-        )
+        hover_end = min(T, press_frame + 1 + round(cfg.hover_lead_s / self.dt))
         for hand in self.hands:
-            targets, weights = hand.fingertip_targets(
-                self.goal,
-                press_frame,
-                hover_frames,
-                scratch,
-                env.data.site_xpos[hand.sites],
-                self.key_target,
-                self.key_top_z,
-                cfg,
-            )
-            hand.solve(m, scratch, targets, weights, cfg)
-            ctrl[hand.actuators] = hand.controls(scratch)
-        action = np.empty(self.nu + 1)
+            hand.command_forearm(ctrl, t, self.dt, cfg)
+            hand.set_wrist(scratch, ctrl, cfg)
+        mujoco.mj_kinematics(m, scratch)
+        for hand in self.hands:
+            targets, active = hand.fingertip_targets(self, press_frame, hover_end)
+            hand.solve(m, scratch, targets, active, cfg)
+            ctrl[hand.finger_actuators] = hand.finger_controls(scratch)
+        action = np.empty(m.nu + 1)
         low, high = m.actuator_ctrlrange.T
         action[:-1] = np.clip(2 * (ctrl - low) / (high - low) - 1, -1, 1)
-        action[-1] = 1.0 if self.goal.sustain[min(t + cfg.press_lead_frames, T - 1)] else -1.0
+        action[-1] = 1.0 if self.goal.sustain[press_frame] else -1.0
         return action.astype(np.float32)
 
 
-class _HandModel:
-    """Indices and per-hand state of the planner for one hand."""
+def planner_env_options() -> dict[str, object]:
+    """Environment options the planner plays best with: the forearm's height slide added.
 
-    def __init__(self, m: mujoco.MjModel, data: mujoco.MjData, env: object, hand: object) -> None:
+    In the paper's action space the Shadow thumb cannot press a white key: with the forearm at
+    its home height its fingertip capsule stops ~1.5 mm above the depth at which a key sounds,
+    even with the wrist flexed (measured by sampling every thumb and wrist angle).
+    """
+    return {"forearm_dofs": ("tx", "ty", "tz")}
+
+
+class _Hand:
+    """One hand: its indices, posture samples, forearm plan and per-finger IK."""
+
+    def __init__(self, m, data, hand, cfg: PlannerConfig, rng: np.random.Generator) -> None:
         self.side = hand.side
         self.finger_offset = 0 if hand.side == "right" else FINGERS_PER_HAND
         self.sites = np.asarray(hand.fingertip_sites)
         prefix = C.HAND_PREFIX[hand.side]
-        self.tx_joint = m.joint(f"{prefix}forearm_tx").id
-        self.tx_qpos = m.jnt_qposadr[self.tx_joint]
+        self.forearm_body = m.body(f"{prefix}forearm").id
+        self.tx_qpos = m.jnt_qposadr[m.joint(f"{prefix}forearm_tx").id]
+        self.tx_range = m.jnt_range[m.joint(f"{prefix}forearm_tx").id]
         self.tx_actuator = m.actuator(f"{prefix}A_forearm_tx").id
-        forearm_actuators = {
-            a for a in hand.actuators if m.actuator(a).name.startswith(f"{prefix}A_forearm")
-        }
-        # Actuated DoFs of the fingers and wrist: a joint, or a tendon coupling two joints.
-        self.actuators = np.array([a for a in hand.actuators if a not in forearm_actuators])
-        self.columns: list[np.ndarray] = []  # dof addresses moved by each actuator
-        self.qpos_of: list[np.ndarray] = []
-        for a in self.actuators:
-            if m.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_TENDON:
-                tendon = m.actuator_trnid[a, 0]
-                start, count = m.tendon_adr[tendon], m.tendon_num[tendon]
-                joints = m.wrap_objid[start : start + count]
-            else:
-                joints = np.array([m.actuator_trnid[a, 0]])
-            self.columns.append(m.jnt_dofadr[joints])
-            self.qpos_of.append(m.jnt_qposadr[joints])
-        self.share = np.array([1.0 / len(c) for c in self.columns])  # tendon: split evenly
-        self.low, self.high = m.actuator_ctrlrange[self.actuators].T
-        # Rest posture: fingers gently curled so that the tips point down at the keys.
-        self.rest = np.clip(np.zeros(len(self.actuators)), self.low, self.high)
-        for i, a in enumerate(self.actuators):
-            name = m.actuator(a).name
-            if name.endswith(("FFJ3", "MFJ3", "RFJ3", "LFJ3")):
-                self.rest[i] = 0.6
-            elif name.endswith("J0") and "TH" not in name:
-                self.rest[i] = 1.0
-            elif name.endswith("WRJ1"):
-                self.rest[i] = 0.0
-        self.rest = np.clip(self.rest, self.low, self.high)
-        self.tx_range = m.jnt_range[self.tx_joint]
         self.root_y = C.FOREARM_ROOT_POS_M[hand.side][1]
-        self.tx_dof = m.jnt_dofadr[self.tx_joint]
+        tz = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, f"{prefix}A_forearm_tz")
+        self.tz_actuator = tz if tz >= 0 else None
+        self.tz_qpos = m.jnt_qposadr[m.joint(f"{prefix}forearm_tz").id] if tz >= 0 else None
+
+        # Actuated joints of each finger (a joint, or a tendon over two joints) and the wrist.
+        self.fingers: list[_Finger] = []
+        self.wrist: list[tuple[int, np.ndarray]] = []
+        for i, finger_prefix in enumerate(FINGER_PREFIXES):
+            acts = [
+                a
+                for a in hand.actuators
+                if m.actuator(a).name.startswith(f"{prefix}A_{finger_prefix}")
+            ]
+            self.fingers.append(_Finger(m, acts, int(self.sites[i])))
+        for a in hand.actuators:
+            if m.actuator(a).name.startswith(f"{prefix}A_WR"):
+                self.wrist.append((int(a), _actuated_qpos(m, a)))
+        self.finger_actuators = np.concatenate([f.actuators for f in self.fingers])
         self.jacp = np.zeros((3, m.nv))
+        self._sample_postures(m, data, cfg, rng)
 
-    def calibrate(self, m, data, key_target, key_top_z, cfg: PlannerConfig) -> None:
-        """Where the forearm must be, relative to a key, for each finger to press it.
+    # -------------------------------------------------------------------- postures
 
-        For each finger, solve the IK with the forearm slide free for that finger pressing a
-        white key near the hand's home position (others lifted), and record key y - slide.
+    def _sample_postures(self, m, data, cfg: PlannerConfig, rng: np.random.Generator) -> None:
+        """Fingertip positions relative to the forearm for random postures of each finger.
+
+        Fingers do not share joints, so one kinematics pass samples all five at once.
         """
         mujoco.mj_resetData(m, data)
-        _kinematics(m, data)
-        home_y = data.site_xpos[self.sites[2], 1]  # middle finger over its home key
-        key = int(np.argmin(np.abs(key_target[:, 1] - home_y) + 1.0 * C.BLACK_KEY_MASK))
-        self.tip_offset_y = np.zeros(FINGERS_PER_HAND)
-        for finger in range(FINGERS_PER_HAND):
-            mujoco.mj_resetData(m, data)
-            _kinematics(m, data)
-            targets = data.site_xpos[self.sites].copy()
-            targets[:, 2] = C.WHITE_KEY_HEIGHT_M + cfg.lift_height_m + C.FINGERTIP_CAPSULE_RADIUS_M
-            targets[finger] = key_target[key]
-            targets[finger, 2] = key_top_z[key] + C.FINGERTIP_CAPSULE_RADIUS_M - cfg.press_depth_m
-            weights = np.full(FINGERS_PER_HAND, cfg.idle_weight)
-            weights[finger] = 1.0
-            self._weights_xy = (np.arange(FINGERS_PER_HAND) == finger).astype(float)
-            cfg_more = PlannerConfig(**{**cfg.__dict__, "iterations": 40})
-            self.solve(m, data, targets, weights, cfg_more, free_forearm=True)
-            self.tip_offset_y[finger] = key_target[key, 1] - data.qpos[self.tx_qpos]
+        self.lower(data, cfg)
+        for finger in self.fingers:
+            finger.samples = rng.uniform(finger.low, finger.high, (cfg.samples, finger.dof))
+            finger.sample_tips = np.empty((cfg.samples, 3))
+        self.set_wrist(data, None, cfg)
+        for s in range(cfg.samples):
+            for finger in self.fingers:
+                finger.set(data, finger.samples[s])
+            mujoco.mj_kinematics(m, data)
+            origin = data.xpos[self.forearm_body]
+            for finger in self.fingers:
+                finger.sample_tips[s] = data.site_xpos[finger.site] - origin
+        # The lifted posture: the sample nearest the rest posture's fingertip, lifted clear.
+        mujoco.mj_resetData(m, data)
+        self.lower(data, cfg)
+        self.set_wrist(data, None, cfg)
+        rest = [_rest_angles(m, f) for f in self.fingers]
+        for finger, angles in zip(self.fingers, rest, strict=True):
+            finger.set(data, angles)
+        mujoco.mj_kinematics(m, data)
+        origin = data.xpos[self.forearm_body].copy()
+        lift_z = C.WHITE_KEY_HEIGHT_M + cfg.lift_height_m + C.FINGERTIP_CAPSULE_RADIUS_M
+        self.rest_tips = data.site_xpos[self.sites] - origin
+        self.lift_tips = self.rest_tips.copy()
+        self.lift_tips[:, 2] = lift_z - origin[2]
+        # Thumb: under the side of the palm, a little more than a key from the index finger.
+        side = 1.0 if self.side == "right" else -1.0
+        self.lift_tips[0, 1] = self.rest_tips[1, 1] - side * cfg.thumb_offset_m
+        for f, finger in enumerate(self.fingers):
+            finger.lift = finger.samples[finger.nearest(self.lift_tips[f], 1.0)]
+        # Forearm slide that puts finger f over a key at y: key y - tip_offset_y[f].
+        self.tip_offset_y = self.lift_tips[:, 1] + origin[1] - data.qpos[self.tx_qpos]
 
-    def plan_forearm(self, goal, key_target: np.ndarray, dt: float, cfg: PlannerConfig) -> None:
+    # -------------------------------------------------------------------- forearm
+
+    def lower(self, data, cfg: PlannerConfig) -> None:
+        """Put the forearm at its playing height in ``data`` (when it has a height slide)."""
+        if self.tz_qpos is not None:
+            data.qpos[self.tz_qpos] = cfg.hand_height_m
+
+    def set_wrist(self, data, ctrl: np.ndarray | None, cfg: PlannerConfig) -> None:
+        for (actuator, qpos), angle in zip(self.wrist, cfg.wrist_pose, strict=False):
+            data.qpos[qpos] = angle
+            if ctrl is not None:
+                ctrl[actuator] = angle
+
+    def plan_forearm(self, goal, key_point: np.ndarray) -> None:
         """Forearm slide position wanted at every frame, shape (T,)."""
         T = goal.num_frames
         wanted = np.full(T, np.nan)
@@ -214,114 +258,159 @@ class _HandModel:
             mine = (fingers >= self.finger_offset) & (fingers < self.finger_offset + 5)
             if mine.any():
                 local = fingers[mine] - self.finger_offset
-                wanted[t] = np.mean(key_target[keys[mine], 1] - self.tip_offset_y[local])
+                wanted[t] = np.mean(key_point[keys[mine], 1] - self.tip_offset_y[local])
         # Between notes, hold the next note's position (go there early); after the last, stay.
         self.busy = ~np.isnan(wanted)
         known = np.flatnonzero(self.busy)
         if known.size == 0:
             wanted[:] = 0.0
         else:
-            nxt = np.searchsorted(known, np.arange(T))
-            nxt = np.minimum(nxt, known.size - 1)
+            nxt = np.minimum(np.searchsorted(known, np.arange(T)), known.size - 1)
             fill = np.isnan(wanted)
             wanted[fill] = wanted[known[nxt[fill]]]
         self.tx_plan = np.clip(wanted, *self.tx_range)
 
-    def command_forearm(self, scratch, ctrl: np.ndarray, t: int, dt: float, cfg) -> None:
+    def command_forearm(self, ctrl: np.ndarray, t: int, dt: float, cfg: PlannerConfig) -> None:
         lead = round(cfg.forearm_lead_s / dt)
-        target = self.tx_plan[min(t + lead, len(self.tx_plan) - 1)]
         # The fingers are solved for where the forearm is now, not where it is going: they
         # then reach their keys even while the forearm is still on its way.
-        ctrl[self.tx_actuator] = target
+        ctrl[self.tx_actuator] = self.tx_plan[min(t + lead, len(self.tx_plan) - 1)]
+        if self.tz_actuator is not None:
+            ctrl[self.tz_actuator] = cfg.hand_height_m
+
+    # -------------------------------------------------------------------- fingers
 
     def fingertip_targets(
-        self, goal, frame: int, hover_frames, scratch, real_tips, key_target, key_top_z, cfg
+        self, planner: IKPlanner, frame: int, hover_end: int
     ) -> tuple[np.ndarray, np.ndarray]:
-        """(5, 3) fingertip targets and (5,) weights for this hand.
+        """(5, 3) fingertip targets relative to the forearm, and which fingers have one.
 
-        A finger due to press comes down only once it is over its key (``real_tips``, the
-        fingertips' actual positions, within ``align_tolerance_m``): a finger that lands beside
-        its key sticks to the key top by friction and presses the gap or the neighbour.
+        Fingers without a target take their lifted posture.
         """
+        cfg, goal = planner.config, planner.goal
         radius = C.FINGERTIP_CAPSULE_RADIUS_M
-        tips = scratch.site_xpos[self.sites]
-        targets = tips.copy()
-        targets[:, 2] = C.WHITE_KEY_HEIGHT_M + cfg.lift_height_m + radius
-        weights = np.full(FINGERS_PER_HAND, cfg.idle_weight)
-        weights_xy = np.zeros(FINGERS_PER_HAND)  # lifted fingers: only height matters
-        assigned = np.zeros(FINGERS_PER_HAND, dtype=bool)
-        keys = np.flatnonzero(goal.keys[frame])
-        for key in keys:
+        origin = planner.scratch.xpos[self.forearm_body]
+        real_tips = planner.env.data.site_xpos[self.sites]
+        targets = self.lift_tips + origin
+        active = np.zeros(FINGERS_PER_HAND, dtype=bool)
+        for key in np.flatnonzero(goal.keys[frame]):
             finger = goal.fingers[frame, key] - self.finger_offset
-            if 0 <= finger < FINGERS_PER_HAND:
-                targets[finger] = key_target[key]
-                aligned = np.hypot(*(real_tips[finger, :2] - key_target[key, :2]))
-                if (
-                    aligned <= cfg.align_tolerance_m
-                    or real_tips[finger, 2] < key_top_z[key] + radius
-                ):
-                    targets[finger, 2] = key_top_z[key] + radius - cfg.press_depth_m
-                else:
-                    targets[finger, 2] = key_top_z[key] + radius + cfg.hover_height_m
-                weights[finger] = 1.0
-                weights_xy[finger] = 1.0
-                assigned[finger] = True
-        for t in hover_frames:
+            if not 0 <= finger < FINGERS_PER_HAND:
+                continue
+            point = self._press_point(planner, key, finger)
+            top = planner.key_top_z[key] + radius
+            tolerance = cfg.align_tolerance_m * (0.5 if C.BLACK_KEY_MASK[key] else 1.0)
+            # Across the keys is what matters; along a key a few mm either way still press it.
+            miss = abs(real_tips[finger, 1] - point[1])
+            down = real_tips[finger, 2] < top
+            targets[finger] = point
+            # A pressing finger keeps pressing while it stays roughly on its key; one that slid
+            # off (beside a black key, say) comes up to try again.
+            if miss <= tolerance or (down and miss <= 2 * tolerance):
+                targets[finger, 2] = top - planner.key_depth[key]
+            else:
+                targets[finger, 2] = top + cfg.hover_height_m
+            active[finger] = True
+        for t in range(frame + 1, hover_end):
             for key in np.flatnonzero(goal.keys[t]):
                 finger = goal.fingers[t, key] - self.finger_offset
-                if 0 <= finger < FINGERS_PER_HAND and not assigned[finger]:
-                    targets[finger] = key_target[key]
-                    targets[finger, 2] = key_top_z[key] + radius + cfg.hover_height_m
-                    weights[finger] = 0.7
-                    weights_xy[finger] = 0.7
-                    assigned[finger] = True
-        self._weights_xy = weights_xy
-        return targets, weights
+                if 0 <= finger < FINGERS_PER_HAND and not active[finger]:
+                    targets[finger] = self._press_point(planner, key, finger)
+                    targets[finger, 2] = planner.key_top_z[key] + radius + cfg.hover_height_m
+                    active[finger] = True
+        return targets - origin, active
 
-    def solve(
-        self, m, scratch, targets: np.ndarray, weights: np.ndarray, cfg, free_forearm=False
-    ) -> None:
-        """Damped least squares on the scratch data, in actuator space (plus the forearm
-        slide along the keyboard when ``free_forearm``)."""
-        n = len(self.actuators) + int(free_forearm)
-        u = self.controls(scratch)
-        low, high, rest = self.low, self.high, self.rest
-        if free_forearm:
-            u = np.append(u, scratch.qpos[self.tx_qpos])
-            low, high = np.append(low, self.tx_range[0]), np.append(high, self.tx_range[1])
-            rest = np.append(rest, u[-1])
-        w = np.repeat(weights, 3)
-        w[0::3] = np.where(self._weights_xy > 0, w[0::3], 0.0)  # lifted: x, y free
-        w[1::3] = np.where(self._weights_xy > 0, w[1::3], 0.0)
-        J = np.zeros((3 * FINGERS_PER_HAND, n))
+    def _press_point(self, planner: IKPlanner, key: int, finger: int) -> np.ndarray:
+        point = planner.key_point[key].copy()
+        if finger == 0 and not C.BLACK_KEY_MASK[key]:
+            point[0] = planner.config.thumb_white_press_x_m
+        return point
+
+    def solve(self, m, scratch, targets: np.ndarray, active: np.ndarray, cfg) -> None:
+        """Set each finger's joints in ``scratch``: nearest sampled posture, then DLS."""
+        for f, finger in enumerate(self.fingers):
+            if active[f]:
+                finger.angles = finger.samples[finger.nearest(targets[f], 1.0)].copy()
+            else:
+                finger.angles = finger.lift.copy()
+            finger.set(scratch, finger.angles)
+        if not active.any():
+            return
         for _ in range(cfg.iterations):
-            _kinematics(m, scratch)
-            for f, site in enumerate(self.sites):
-                mujoco.mj_jacSite(m, scratch, self.jacp, None, int(site))
-                for i, cols in enumerate(self.columns):
-                    J[3 * f : 3 * f + 3, i] = self.jacp[:, cols].sum(axis=1) * self.share[i]
-                if free_forearm:
-                    J[3 * f : 3 * f + 3, -1] = self.jacp[:, self.tx_dof]
-            error = (targets - scratch.site_xpos[self.sites]).ravel()
-            A = J.T @ (w[:, None] * J) + (cfg.damping**2 + cfg.rest_weight) * np.eye(n)
-            b = J.T @ (w * error) + cfg.rest_weight * (rest - u)
-            du = np.clip(np.linalg.solve(A, b), -cfg.step_limit_rad, cfg.step_limit_rad)
-            u = np.clip(u + du, low, high)
-            self._set(scratch, u[: len(self.actuators)])
-            if free_forearm:
-                scratch.qpos[self.tx_qpos] = u[-1]
-        _kinematics(m, scratch)
+            mujoco.mj_kinematics(m, scratch)
+            mujoco.mj_comPos(m, scratch)  # mj_jacSite reads cdof and subtree centres
+            origin = scratch.xpos[self.forearm_body]
+            for f in np.flatnonzero(active):
+                finger = self.fingers[f]
+                error = targets[f] - (scratch.site_xpos[finger.site] - origin)
+                mujoco.mj_jacSite(m, scratch, self.jacp, None, finger.site)
+                J = finger.jacobian(self.jacp)
+                A = J.T @ J + (cfg.damping**2 + cfg.rest_weight) * np.eye(finger.dof)
+                step = np.linalg.solve(A, J.T @ error)
+                step = np.clip(step, -cfg.step_limit_rad, cfg.step_limit_rad)
+                finger.angles = np.clip(finger.angles + step, finger.low, finger.high)
+                finger.set(scratch, finger.angles)
 
-    def controls(self, scratch) -> np.ndarray:
-        """Actuator-space angles of the scratch pose (tendon = sum of its joints)."""
-        return np.array([scratch.qpos[q].sum() for q in self.qpos_of])
-
-    def _set(self, scratch, u: np.ndarray) -> None:
-        for value, q, share in zip(u, self.qpos_of, self.share, strict=True):
-            scratch.qpos[q] = value * share
+    def finger_controls(self, scratch) -> np.ndarray:
+        return np.concatenate([f.angles for f in self.fingers])
 
 
-def _keep_forearms_apart(a: _HandModel, b: _HandModel, separation: float) -> None:
+class _Finger:
+    """The actuated joints of one finger: actuator ids, limits, how to set and differentiate."""
+
+    def __init__(self, m, actuators: list[int], site: int) -> None:
+        self.actuators = np.asarray(actuators, dtype=int)
+        self.site = site
+        self.dof = len(actuators)
+        self.qpos = [_actuated_qpos(m, a) for a in actuators]
+        self.dofs = [m.jnt_dofadr[_actuated_joints(m, a)] for a in actuators]
+        self.share = np.array([1.0 / len(q) for q in self.qpos])  # tendon: split evenly
+        self.low, self.high = m.actuator_ctrlrange[self.actuators].T
+        self.names = [m.actuator(a).name for a in actuators]
+        self.angles = np.zeros(self.dof)
+
+    def set(self, data, angles: np.ndarray) -> None:
+        for value, qpos, share in zip(angles, self.qpos, self.share, strict=True):
+            data.qpos[qpos] = value * share
+
+    def jacobian(self, jacp: np.ndarray) -> np.ndarray:
+        """(3, dof) fingertip Jacobian in actuator space from the full (3, nv) one."""
+        return np.stack(
+            [jacp[:, cols].sum(axis=1) * s for cols, s in zip(self.dofs, self.share, strict=True)],
+            axis=1,
+        )
+
+    def nearest(self, target: np.ndarray, z_weight: float) -> int:
+        """Index of the sampled posture whose fingertip is closest to ``target`` (forearm frame)."""
+        diff = self.sample_tips - target
+        diff[:, 2] *= z_weight
+        return int(np.argmin(np.einsum("ij,ij->i", diff, diff)))
+
+
+def _actuated_joints(m, actuator: int) -> np.ndarray:
+    if m.actuator_trntype[actuator] == mujoco.mjtTrn.mjTRN_TENDON:
+        tendon = m.actuator_trnid[actuator, 0]
+        start, count = m.tendon_adr[tendon], m.tendon_num[tendon]
+        return m.wrap_objid[start : start + count]
+    return np.array([m.actuator_trnid[actuator, 0]])
+
+
+def _actuated_qpos(m, actuator: int) -> np.ndarray:
+    return m.jnt_qposadr[_actuated_joints(m, actuator)]
+
+
+def _rest_angles(m, finger: _Finger) -> np.ndarray:
+    """A relaxed playing posture: knuckles bent a little, fingertips pointing down."""
+    angles = np.zeros(finger.dof)
+    for i, name in enumerate(finger.names):
+        if name.endswith("J3") and "TH" not in name:
+            angles[i] = 0.6
+        elif name.endswith("J0"):
+            angles[i] = 1.0
+    return np.clip(angles, finger.low, finger.high)
+
+
+def _keep_forearms_apart(a: _Hand, b: _Hand, separation: float) -> None:
     """Shift the forearm plans so the right forearm stays ``separation`` m right of the left.
 
     A hand with nothing to play yields to the other; when both play, both give way equally.
@@ -335,9 +424,3 @@ def _keep_forearms_apart(a: _HandModel, b: _HandModel, separation: float) -> Non
     )
     right.tx_plan = np.clip(right.tx_plan + short * right_share, *right.tx_range)
     left.tx_plan = np.clip(left.tx_plan - short * (1 - right_share), *left.tx_range)
-
-
-def _kinematics(m: mujoco.MjModel, data: mujoco.MjData) -> None:
-    """Positions and the quantities ``mj_jacSite`` reads (cdof, subtree centres of mass)."""
-    mujoco.mj_kinematics(m, data)
-    mujoco.mj_comPos(m, data)
