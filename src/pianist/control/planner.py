@@ -42,6 +42,8 @@ class PlannerConfig:
     """The same for a black key (shorter lever, so it needs more force)."""
     hover_height_m: float = 0.01
     """Clearance above the key top of a finger that is due soon, or not yet over its key."""
+    release_height_m: float = 0.003
+    """Clearance above the key top a finger goes to between two strikes of one key."""
     lift_height_m: float = 0.035
     """Clearance above the white keys of a finger that is not due."""
     white_press_x_m: float = 0.045
@@ -119,6 +121,10 @@ class IKPlanner:
         self.key_depth = np.where(
             C.BLACK_KEY_MASK, cfg.black_press_depth_m, cfg.white_press_depth_m
         )
+        self.key_qpos = base.scene.key_qpos
+        self.key_threshold = np.where(
+            C.BLACK_KEY_MASK, C.BLACK_KEY_MAX_ANGLE_RAD, C.WHITE_KEY_MAX_ANGLE_RAD
+        ) - C.KEY_ACTIVATION_THRESHOLD_RAD
         rng = np.random.default_rng(0)  # the posture samples do not depend on the episode
         self.hands = [_Hand(m, self.scratch, hand, cfg, rng) for hand in base.scene.hands]
         for hand in self.hands:
@@ -140,7 +146,7 @@ class IKPlanner:
             hand.set_wrist(scratch, ctrl, cfg)
         mujoco.mj_kinematics(m, scratch)
         for hand in self.hands:
-            targets, active = hand.fingertip_targets(self, press_frame, hover_end)
+            targets, active = hand.fingertip_targets(self, t, hover_end)
             hand.solve(m, scratch, targets, active, cfg)
             ctrl[hand.finger_actuators] = hand.finger_controls(scratch)
         action = np.empty(m.nu + 1)
@@ -281,11 +287,14 @@ class _Hand:
     # -------------------------------------------------------------------- fingers
 
     def fingertip_targets(
-        self, planner: IKPlanner, frame: int, hover_end: int
+        self, planner: IKPlanner, now: int, hover_end: int
     ) -> tuple[np.ndarray, np.ndarray]:
         """(5, 3) fingertip targets relative to the forearm, and which fingers have one.
 
-        Fingers without a target take their lifted posture.
+        Keys scored at the end of this step (frame ``now``) are held down to its end; keys
+        due at the next frame are pressed already (the servos lag about a frame), except a key
+        that is still down and must sound again: it is let up for this step first. Fingers due
+        later hover over their keys; the rest take their lifted posture.
         """
         cfg, goal = planner.config, planner.goal
         radius = C.FINGERTIP_CAPSULE_RADIUS_M
@@ -293,25 +302,31 @@ class _Hand:
         real_tips = planner.env.data.site_xpos[self.sites]
         targets = self.lift_tips + origin
         active = np.zeros(FINGERS_PER_HAND, dtype=bool)
-        for key in np.flatnonzero(goal.keys[frame]):
-            finger = goal.fingers[frame, key] - self.finger_offset
-            if not 0 <= finger < FINGERS_PER_HAND:
-                continue
-            point = self._press_point(planner, key, finger)
-            top = planner.key_top_z[key] + radius
-            tolerance = cfg.align_tolerance_m * (0.5 if C.BLACK_KEY_MASK[key] else 1.0)
-            # Across the keys is what matters; along a key a few mm either way still press it.
-            miss = abs(real_tips[finger, 1] - point[1])
-            down = real_tips[finger, 2] < top
-            targets[finger] = point
-            # A pressing finger keeps pressing while it stays roughly on its key; one that slid
-            # off (beside a black key, say) comes up to try again.
-            if miss <= tolerance or (down and miss <= 2 * tolerance):
-                targets[finger, 2] = top - planner.key_depth[key]
-            else:
-                targets[finger, 2] = top + cfg.hover_height_m
-            active[finger] = True
-        for t in range(frame + 1, hover_end):
+        lead = min(now + cfg.press_lead_frames, goal.num_frames - 1)
+        key_down = planner.env.data.qpos[planner.key_qpos] >= planner.key_threshold
+        for frame in (now, lead):
+            for key in np.flatnonzero(goal.keys[frame]):
+                finger = goal.fingers[frame, key] - self.finger_offset
+                if not 0 <= finger < FINGERS_PER_HAND or active[finger]:
+                    continue
+                point = self._press_point(planner, key, finger)
+                top = planner.key_top_z[key] + radius
+                targets[finger] = point
+                active[finger] = True
+                if frame != now and key_down[key]:
+                    targets[finger, 2] = top + cfg.release_height_m  # re-strike: up first
+                    continue
+                tolerance = cfg.align_tolerance_m * (0.5 if C.BLACK_KEY_MASK[key] else 1.0)
+                # Across the keys is what matters; along a key a few mm either way still press.
+                miss = abs(real_tips[finger, 1] - point[1])
+                down = real_tips[finger, 2] < top
+                # A pressing finger keeps pressing while it stays roughly on its key; one that
+                # slid off (beside a black key, say) comes up to try again.
+                if miss <= tolerance or (down and miss <= 2 * tolerance):
+                    targets[finger, 2] = top - planner.key_depth[key]
+                else:
+                    targets[finger, 2] = top + cfg.hover_height_m
+        for t in range(lead + 1, hover_end):
             for key in np.flatnonzero(goal.keys[t]):
                 finger = goal.fingers[t, key] - self.finger_offset
                 if 0 <= finger < FINGERS_PER_HAND and not active[finger]:
