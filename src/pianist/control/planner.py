@@ -40,6 +40,8 @@ class PlannerConfig:
     position servo keeps pushing it down."""
     black_press_depth_m: float = 0.025
     """The same for a black key (shorter lever, so it needs more force)."""
+    thumb_extra_depth_m: float = 0.02
+    """Added to the thumb's press depth: its servos are weak for the force a key needs."""
     hover_height_m: float = 0.01
     """Clearance above the key top of a finger that is due soon, or not yet over its key."""
     release_height_m: float = 0.003
@@ -323,7 +325,8 @@ class _Hand:
                 # A pressing finger keeps pressing while it stays roughly on its key; one that
                 # slid off (beside a black key, say) comes up to try again.
                 if miss <= tolerance or (down and miss <= 2 * tolerance):
-                    targets[finger, 2] = top - planner.key_depth[key]
+                    extra = cfg.thumb_extra_depth_m if finger == 0 else 0.0
+                    targets[finger, 2] = top - planner.key_depth[key] - extra
                 else:
                     targets[finger, 2] = top + cfg.hover_height_m
         for t in range(lead + 1, hover_end):
