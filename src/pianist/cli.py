@@ -122,7 +122,8 @@ class Play:
 
             check_soundfont(self.soundfont)
         _prepare_dir(self.out)
-        env = PianoEnv(song, physics=self.physics)
+        env_options = _env_options_for(self.controller)
+        env = PianoEnv(song, physics=self.physics, **env_options)
         if self.video:
             from pianist.media import check_video_options
 
@@ -137,6 +138,7 @@ class Play:
             controller=self.controller,
             physics=self.physics,
             seed=self.seed,
+            env_options={k: list(v) if isinstance(v, tuple) else v for k, v in env_options.items()},
             wall_seconds=wall,
             realtime_factor=metrics["seconds"] / wall if wall > 0 else float("inf"),
         )
@@ -182,6 +184,15 @@ class Play:
                 audio=performance,
                 progress=sys.stderr.isatty(),
             )
+
+
+def _env_options_for(controller: str) -> dict[str, Any]:
+    """Environment options a controller needs beyond the benchmark's defaults."""
+    if controller == "planner":
+        from pianist.control.planner import planner_env_options
+
+        return planner_env_options()
+    return {}
 
 
 def _prepare_dir(path: Path) -> None:

@@ -124,9 +124,10 @@ class IKPlanner:
             C.BLACK_KEY_MASK, cfg.black_press_depth_m, cfg.white_press_depth_m
         )
         self.key_qpos = base.scene.key_qpos
-        self.key_threshold = np.where(
-            C.BLACK_KEY_MASK, C.BLACK_KEY_MAX_ANGLE_RAD, C.WHITE_KEY_MAX_ANGLE_RAD
-        ) - C.KEY_ACTIVATION_THRESHOLD_RAD
+        self.key_threshold = (
+            np.where(C.BLACK_KEY_MASK, C.BLACK_KEY_MAX_ANGLE_RAD, C.WHITE_KEY_MAX_ANGLE_RAD)
+            - C.KEY_ACTIVATION_THRESHOLD_RAD
+        )
         rng = np.random.default_rng(0)  # the posture samples do not depend on the episode
         self.hands = [_Hand(m, self.scratch, hand, cfg, rng) for hand in base.scene.hands]
         for hand in self.hands:

@@ -1,0 +1,98 @@
+"""The inverse-kinematics planner: F1, precision, recall and speed per song and physics preset.
+
+For every song asked for (default: every built-in song), on the faithful and the fast preset,
+one episode of :class:`pianist.control.planner.IKPlanner` in the environment the CLI uses for
+it (the benchmark's defaults plus the forearm height slide, see ``planner_env_options``):
+
+- precision, recall, F1 and sustain F1 (the planner is deterministic: one episode suffices);
+- rtf: simulated seconds per wall-clock second, planner included, median over ``--repeats``;
+- plan: the planner's share of the wall-clock time (its ``act`` calls against the whole loop);
+- dF1: F1 on fast minus F1 on faithful, to check that the fast preset keeps results.
+
+Run: ``python benchmarks/bench_planner.py [--songs a,b] [--repeats 3] [--json out.json]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+
+import numpy as np
+
+from pianist.control.planner import IKPlanner, planner_env_options
+from pianist.env import PianoEnv
+from pianist.eval import run_episode
+from pianist.music import list_songs
+
+PRESETS = ("faithful", "fast")
+
+
+class _TimedPlanner(IKPlanner):
+    """The planner, timing its own ``act`` calls."""
+
+    def reset(self, env, seed=None) -> None:
+        self.act_seconds = 0.0
+        super().reset(env, seed)
+
+    def act(self, observation=None) -> np.ndarray:
+        start = time.perf_counter()
+        action = super().act(observation)
+        self.act_seconds += time.perf_counter() - start
+        return action
+
+
+def bench_song(song: str, physics: str, repeats: int) -> dict[str, float]:
+    env = PianoEnv(song, physics=physics, **planner_env_options())
+    planner = _TimedPlanner()
+    rates, shares, metrics = [], [], None
+    for _ in range(repeats):
+        start = time.perf_counter()
+        episode = run_episode(env, planner, seed=0)
+        wall = time.perf_counter() - start
+        metrics = episode.metrics()
+        rates.append(metrics["seconds"] / wall)
+        shares.append(planner.act_seconds / wall)
+    return {
+        "precision": metrics["precision"],
+        "recall": metrics["recall"],
+        "f1": metrics["f1"],
+        "sustain_f1": metrics["sustain_f1"],
+        "seconds": metrics["seconds"],
+        "realtime_factor": float(np.median(rates)),
+        "planner_share": float(np.median(shares)),
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--songs", default=",".join(list_songs()))
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--json", default=None, help="also write the results to this file")
+    args = parser.parse_args()
+
+    results: dict[str, dict[str, dict[str, float]]] = {}
+    header = f"{'song':24s} {'preset':9s} {'P':>6s} {'R':>6s} {'F1':>6s} {'rtf':>6s} {'plan':>5s}"
+    print(header)
+    for song in args.songs.split(","):
+        results[song] = {}
+        for physics in PRESETS:
+            r = bench_song(song, physics, args.repeats)
+            results[song][physics] = r
+            print(
+                f"{song:24s} {physics:9s} {r['precision']:6.3f} {r['recall']:6.3f} "
+                f"{r['f1']:6.3f} {r['realtime_factor']:6.1f} {r['planner_share']:5.2f}",
+                flush=True,
+            )
+    print(f"\n{'song':24s} {'dF1 (fast - faithful)':>22s}")
+    for song, by_preset in results.items():
+        print(f"{song:24s} {by_preset['fast']['f1'] - by_preset['faithful']['f1']:+22.3f}")
+    f1 = {p: np.mean([r[p]["f1"] for r in results.values()]) for p in PRESETS}
+    print(f"\nmean F1: faithful {f1['faithful']:.3f}, fast {f1['fast']:.3f}")
+    if args.json:
+        with open(args.json, "w") as handle:
+            json.dump(results, handle, indent=2)
+
+
+if __name__ == "__main__":
+    main()
