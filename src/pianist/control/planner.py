@@ -67,8 +67,8 @@ class PlannerConfig:
     presses, half that for a black key: a finger that lands beside its key sticks to the
     neighbour by friction."""
     forearm_lead_s: float = 0.2
-    forearm_separation_m: float = 0.21
-    """Closest the two forearm roots may come along the keyboard (they collide below ~0.15)."""
+    forearm_separation_m: float = 0.17
+    """Closest the two forearm roots may come along the keyboard (they touch below ~0.15)."""
     thumb_offset_m: float = 0.03
     """How far the thumb presses to the left (right hand; mirrored for the left) of the
     index finger's rest position: the thumb, without its rotation joint, reaches key depth
