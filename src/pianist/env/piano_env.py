@@ -64,20 +64,6 @@ class SimulationUnstableError(RuntimeError):
     """MuJoCo reported a diverging simulation (NaN, Inf or huge accelerations)."""
 
 
-def action_to_ctrl(action: np.ndarray, ctrlrange: np.ndarray) -> np.ndarray:
-    """Normalised actuator actions -> actuator controls (what :meth:`PianoEnv.step` applies).
-
-    Args:
-        action: (..., nu) values in [-1, 1] (clipped), one per actuator, sustain excluded.
-        ctrlrange: (nu, 2) control range of each actuator (``model.actuator_ctrlrange``).
-    Returns:
-        (..., nu) controls, -1 -> the range's lower end, 1 -> its upper end.
-    """
-    low, high = ctrlrange[:, 0], ctrlrange[:, 1]
-    action = np.clip(np.asarray(action, dtype=np.float64), -1.0, 1.0)  # float32 in: no rounding
-    return low + (action + 1.0) * ((high - low) / 2)
-
-
 def resolve_goal(song: Song | GoalFrames | str | Path, dt: float) -> tuple[GoalFrames, Song | None]:
     """A song name, file, Song or GoalFrames -> goal frames at control step ``dt``."""
     if isinstance(song, GoalFrames):
@@ -303,7 +289,7 @@ class PianoEnv(gym.Env):
         if not np.all(np.isfinite(action)):
             raise ValueError("action contains NaN or Inf")
         action = np.clip(action, -1.0, 1.0)
-        self.data.ctrl[:] = action_to_ctrl(action[:-1], self.model.actuator_ctrlrange)
+        self.data.ctrl[:] = self._ctrl_low + (action[:-1] + 1.0) * self._ctrl_half
         sustain = bool(action[-1] >= 0.0)  # the pedal value (a + 1) / 2 reaches 0.5
         self._pending_events = EMPTY_EVENTS
         if sustain != self._sustain:
