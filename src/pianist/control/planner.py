@@ -42,6 +42,10 @@ class PlannerConfig:
     """The same for a black key (shorter lever, so it needs more force)."""
     thumb_extra_depth_m: float = 0.02
     """Added to the thumb's press depth: its servos are weak for the force a key needs."""
+    thumb_push_rad: float = 0.3
+    """Extra command of a pressing thumb along the joint direction that lowers its tip."""
+    finger_push_rad: float = 0.0
+    """The same for the other fingers."""
     hover_height_m: float = 0.01
     """Clearance above the key top of a finger that is due soon, or not yet over its key."""
     release_height_m: float = 0.003
@@ -201,6 +205,7 @@ class _Hand:
                 self.wrist.append((int(a), _actuated_qpos(m, a)))
         self.finger_actuators = np.concatenate([f.actuators for f in self.fingers])
         self.jacp = np.zeros((3, m.nv))
+        self.pressing = np.zeros(FINGERS_PER_HAND, dtype=bool)
         self._sample_postures(m, data, cfg, rng)
 
     # -------------------------------------------------------------------- postures
@@ -305,6 +310,7 @@ class _Hand:
         real_tips = planner.env.data.site_xpos[self.sites]
         targets = self.lift_tips + origin
         active = np.zeros(FINGERS_PER_HAND, dtype=bool)
+        self.pressing = np.zeros(FINGERS_PER_HAND, dtype=bool)
         lead = min(now + cfg.press_lead_frames, goal.num_frames - 1)
         key_down = planner.env.data.qpos[planner.key_qpos] >= planner.key_threshold
         for frame in (now, lead):
@@ -328,6 +334,7 @@ class _Hand:
                 if miss <= tolerance or (down and miss <= 2 * tolerance):
                     extra = cfg.thumb_extra_depth_m if finger == 0 else 0.0
                     targets[finger, 2] = top - planner.key_depth[key] - extra
+                    self.pressing[finger] = True
                 else:
                     targets[finger, 2] = top + cfg.hover_height_m
         for t in range(lead + 1, hover_end):
@@ -369,6 +376,22 @@ class _Hand:
                 step = np.clip(step, -cfg.step_limit_rad, cfg.step_limit_rad)
                 finger.angles = np.clip(finger.angles + step, finger.low, finger.high)
                 finger.set(scratch, finger.angles)
+        # A pressing finger is commanded further along the joint direction that lowers its
+        # tip: the position servos' force grows with that error, and a target out of reach
+        # (often the thumb's) leaves the IK at the boundary with too little error to push.
+        if not self.pressing.any():
+            return
+        mujoco.mj_kinematics(m, scratch)
+        mujoco.mj_comPos(m, scratch)
+        for f in np.flatnonzero(self.pressing):
+            finger = self.fingers[f]
+            amount = cfg.thumb_push_rad if f == 0 else cfg.finger_push_rad
+            mujoco.mj_jacSite(m, scratch, self.jacp, None, finger.site)
+            down = -finger.jacobian(self.jacp)[2]
+            norm = np.linalg.norm(down)
+            if amount > 0 and norm > 0:
+                push = finger.angles + amount * down / norm
+                finger.angles = np.clip(push, finger.low, finger.high)
 
     def finger_controls(self, scratch) -> np.ndarray:
         return np.concatenate([f.angles for f in self.fingers])
