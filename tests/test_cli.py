@@ -2,8 +2,8 @@
 
 import json
 import subprocess
-import wave
 import sys
+import wave
 from pathlib import Path
 
 import mido
