@@ -9,6 +9,7 @@ from pianist.sim.hands import HandOptions
 from pianist.sim.scene import SceneOptions
 
 REWARD_TERMS = ("key_press", "fingering", "energy", "sustain", "forearm")
+FINGERING_REWARDS = ("assigned", "optimal")
 
 
 @dataclass(frozen=True)
@@ -40,12 +41,21 @@ class EnvConfig:
     """End the episode (terminated) as soon as a key that is not due sounds."""
     randomize_hand_positions: bool = False
     """Start each forearm up to 5 cm along the keyboard from its home, drawn from the seed."""
+    fingering_reward: str = "assigned"
+    """"assigned": each due key's labelled finger is pulled to it (the paper); "optimal": the
+    fingertips are matched to the due keys by a minimum-distance assignment each step, so no
+    fingering labels are needed (RP1M; facts page section 3)."""
     scene: SceneOptions = field(default_factory=SceneOptions)
     rewards: RewardWeights = field(default_factory=RewardWeights)
 
     def __post_init__(self) -> None:
         if self.lookahead < 0:
             raise ValueError(f"lookahead must be >= 0, not {self.lookahead}")
+        if self.fingering_reward not in FINGERING_REWARDS:
+            raise ValueError(
+                f"fingering_reward must be one of {', '.join(FINGERING_REWARDS)}, "
+                f"not {self.fingering_reward!r}"
+            )
         timestep = self.scene.physics_preset.timestep_s
         ratio = self.control_timestep_s / timestep
         if self.control_timestep_s <= 0 or abs(ratio - round(ratio)) > 1e-6 or round(ratio) < 1:
@@ -74,6 +84,7 @@ def make_config(
     randomize_hand_positions: bool = False,
     control_timestep_s: float = C.CONTROL_TIMESTEP_S,
     rewards: RewardWeights | None = None,
+    fingering_reward: str = "assigned",
 ) -> EnvConfig:
     """Flat keyword options -> :class:`EnvConfig` (what ``pianist.make_env`` accepts)."""
     return EnvConfig(
@@ -81,6 +92,7 @@ def make_config(
         control_timestep_s=control_timestep_s,
         wrong_press_termination=wrong_press_termination,
         randomize_hand_positions=randomize_hand_positions,
+        fingering_reward=fingering_reward,
         scene=SceneOptions(
             hands=hands,  # type: ignore[arg-type]
             physics=physics,

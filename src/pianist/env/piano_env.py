@@ -64,6 +64,20 @@ class SimulationUnstableError(RuntimeError):
     """MuJoCo reported a diverging simulation (NaN, Inf or huge accelerations)."""
 
 
+def action_to_ctrl(action: np.ndarray, ctrlrange: np.ndarray) -> np.ndarray:
+    """Normalised actuator actions -> actuator controls (what :meth:`PianoEnv.step` applies).
+
+    Args:
+        action: (..., nu) values in [-1, 1] (clipped), one per actuator, sustain excluded.
+        ctrlrange: (nu, 2) control range of each actuator (``model.actuator_ctrlrange``).
+    Returns:
+        (..., nu) controls, -1 -> the range's lower end, 1 -> its upper end.
+    """
+    low, high = ctrlrange[:, 0], ctrlrange[:, 1]
+    action = np.clip(np.asarray(action, dtype=np.float64), -1.0, 1.0)  # float32 in: no rounding
+    return low + (action + 1.0) * ((high - low) / 2)
+
+
 def resolve_goal(song: Song | GoalFrames | str | Path, dt: float) -> tuple[GoalFrames, Song | None]:
     """A song name, file, Song or GoalFrames -> goal frames at control step ``dt``."""
     if isinstance(song, GoalFrames):
@@ -180,6 +194,10 @@ class PianoEnv(gym.Env):
             sites = self._finger_sites[fingers[keys]]
             present = sites >= 0
             self._fingering_sites.append((sites[present], self.scene.key_sites[keys[present]]))
+        if self.config.fingering_reward == "optimal":
+            # Label-free: every fingertip of the scene may take any due key.
+            tips = self._finger_sites[self._finger_sites >= 0]
+            self._fingering_sites = [(tips, self.scene.key_sites[keys]) for keys in self._due_keys]
 
     def _setup_spaces(self) -> None:
         L = self.config.lookahead
@@ -289,7 +307,7 @@ class PianoEnv(gym.Env):
         if not np.all(np.isfinite(action)):
             raise ValueError("action contains NaN or Inf")
         action = np.clip(action, -1.0, 1.0)
-        self.data.ctrl[:] = self._ctrl_low + (action[:-1] + 1.0) * self._ctrl_half
+        self.data.ctrl[:] = action_to_ctrl(action[:-1], self.model.actuator_ctrlrange)
         sustain = bool(action[-1] >= 0.0)  # the pedal value (a + 1) / 2 reaches 0.5
         self._pending_events = EMPTY_EVENTS
         if sustain != self._sustain:
@@ -367,7 +385,7 @@ class PianoEnv(gym.Env):
             "key_press": R.key_press_reward(
                 self._key_state, self.goal.keys[t], self._active, self._due_keys[t]
             ),
-            "fingering": R.fingering_reward(site_xpos[fingertips], site_xpos[targets]),
+            "fingering": self._fingering_term(site_xpos[fingertips], site_xpos[targets]),
             # Force and velocity sensors, as computed during the last substep.
             "energy": R.energy(
                 self.data.sensordata[self.scene.actuator_force_sensors],
@@ -376,6 +394,12 @@ class PianoEnv(gym.Env):
             "sustain": R.sustain_reward(bool(self.goal.sustain[t]), self._sustain),
             "forearm": R.forearm_reward(self._forearms_touch()),
         }
+
+    @property
+    def _fingering_term(self) -> Any:
+        if self.config.fingering_reward == "optimal":
+            return R.optimal_fingering_reward
+        return R.fingering_reward
 
     def _forearms_touch(self) -> bool:
         if self._forearm_pair is None:

@@ -92,6 +92,33 @@ def fingering_reward(fingertip_pos: np.ndarray, key_target_pos: np.ndarray) -> f
     return float(tolerance(distance, FINGERING_BOUNDS_M, FINGERING_MARGIN_M).sum()) / n
 
 
+def optimal_fingering_reward(fingertip_pos: np.ndarray, key_target_pos: np.ndarray) -> float:
+    """Bring the fingertips to the due keys, whichever fingertip goes to whichever key.
+
+    Each step, fingertips are matched one-to-one to the due keys by a minimum total distance
+    assignment (Hungarian algorithm, ``scipy.optimize.linear_sum_assignment``), and the
+    matched distances are scored as in :func:`fingering_reward` (RP1M's label-free reward).
+
+    Args:
+        fingertip_pos: (m, 3) m, every fingertip that may play (10 with both hands).
+        key_target_pos: (n, 3) m, the strike point of each due key.
+    Returns:
+        Sum of the tolerances of the matched distances divided by n (a key left without a
+        fingertip, when n > m, scores 0); 0 when n = 0.
+    """
+    from scipy.optimize import linear_sum_assignment
+
+    n = len(key_target_pos)
+    if n == 0 or len(fingertip_pos) == 0:
+        return 0.0
+    distance = np.sqrt(
+        np.square(fingertip_pos[:, None, :] - key_target_pos[None, :, :]).sum(axis=-1)
+    )  # (m, n)
+    rows, cols = linear_sum_assignment(distance)
+    matched = distance[rows, cols]
+    return float(tolerance(matched, FINGERING_BOUNDS_M, FINGERING_MARGIN_M).sum()) / n
+
+
 def energy(actuator_force: np.ndarray, actuator_velocity: np.ndarray) -> float:
     """Mechanical power spent by the actuators, sum |force| |velocity| (W); weight it < 0."""
     return float(np.abs(actuator_force) @ np.abs(actuator_velocity))

@@ -15,9 +15,25 @@ from pathlib import Path
 from typing import Literal
 
 from pianist.music.errors import MidiFileError, MusicError, UnknownSongError
+from pianist.music.fingering import FingeringMode, assign_fingering, ensure_fingering
 from pianist.music.midi import read_midi
 from pianist.music.notes import LEFT, RIGHT, Note, Song
+from pianist.music.open_library import (
+    OPEN_SUITE,
+    list_open_songs,
+    load_open_song,
+    open_song_info,
+)
+from pianist.music.parts import midi_hand_hints
 from pianist.music.pig import read_pig
+from pianist.music.pig_dataset import (
+    ETUDE_12,
+    PIG_SUITES,
+    find_pig_song,
+    is_pig_name,
+    list_pig_songs,
+    load_pig_song,
+)
 from pianist.music.pitch import name_to_pitch
 
 _MAJOR_STEPS = (0, 2, 4, 5, 7, 9, 11, 12)  # semitones above the tonic, one octave
@@ -128,13 +144,33 @@ _SONGS: dict[str, tuple[str, Callable[[], list[Note]]]] = {
 }
 
 
-def list_songs() -> list[str]:
-    """Names of the built-in songs, in a stable order."""
-    return list(_SONGS)
+#: Suites :func:`list_songs` knows: the debug songs, the shipped open library, and the
+#: PIG-based suites of the paper (available once ``pianist import-pig`` has run).
+SUITES = ("debug", OPEN_SUITE, *PIG_SUITES)
+
+
+def list_songs(suite: str | None = None) -> list[str]:
+    """Names of the songs of ``suite``, in a stable order; by default the built-in debug songs.
+
+    Args:
+        suite: None or "debug" (the debug songs), "open-etude-12" (the shipped open library),
+            "etude-12" or "repertoire-150" (imported PIG pieces).
+
+    Raises:
+        ValueError: unknown suite.
+        PigDatasetError: a PIG suite before ``pianist import-pig`` has run.
+    """
+    if suite is None or suite == "debug":
+        return list(_SONGS)
+    if suite == OPEN_SUITE:
+        return list_open_songs()
+    if suite in PIG_SUITES:
+        return list_pig_songs(suite)
+    raise ValueError(f"unknown suite {suite!r}; choose from {', '.join(SUITES)}")
 
 
 def _unknown(name: str) -> UnknownSongError:
-    close = difflib.get_close_matches(name, list(_SONGS), n=3, cutoff=0.5)
+    close = difflib.get_close_matches(name, list(_SONGS) + list_open_songs(), n=3, cutoff=0.5)
     hint = f"did you mean {', '.join(close)}? " if close else ""
     return UnknownSongError(
         f"unknown song {name!r}: {hint}run `pianist songs` to list the built-in songs, "
@@ -148,44 +184,83 @@ def song_description(name: str) -> str:
     Raises:
         UnknownSongError: ``name`` is not a built-in song.
     """
-    if name not in _SONGS:
-        raise _unknown(name)
-    return _SONGS[name][0]
+    if name in _SONGS:
+        return _SONGS[name][0]
+    if name in list_open_songs():
+        info = open_song_info(name)
+        return (
+            f"{info['composer']}: {info['title']}, {info['segment']['description']} ({OPEN_SUITE})"
+        )
+    raise _unknown(name)
 
 
 def get_song(name: str) -> Song:
-    """Build built-in song ``name`` (fully fingered, no sustain).
+    """Build built-in song ``name`` (fully fingered): a debug song or an open-library piece.
 
     Raises:
         UnknownSongError: ``name`` is not a built-in song.
     """
-    if name not in _SONGS:
-        raise _unknown(name)
-    return Song(notes=tuple(_SONGS[name][1]()), name=name)
+    if name in _SONGS:
+        return Song(notes=tuple(_SONGS[name][1]()), name=name)
+    if name in list_open_songs():
+        return load_open_song(name)
+    raise _unknown(name)
 
 
 def load_song(
     name_or_path: str | os.PathLike[str] | Song,
     out_of_range: Literal["error", "drop"] = "error",
+    fingering: FingeringMode | None = None,
 ) -> Song:
     """Resolve a song given as a :class:`Song`, a built-in name or a file path.
 
+    Names: the debug songs, the ``open-etude-12`` pieces, and (once ``pianist import-pig``
+    has run) the PIG pieces by RoboPianist name (``FrenchSuiteNo1Allemande``,
+    ``RoboPianist-etude-12-FrenchSuiteNo1Allemande-v0``, ``pig-001``).
     ``.mid``/``.midi`` files go to :func:`read_midi` (no fingering), ``.txt`` files to
     :func:`read_pig`; ``out_of_range`` is passed to both. A built-in name wins over a file of
     the same name in the working directory.
+
+    ``fingering`` (None leaves the song as loaded) applies
+    :func:`pianist.music.fingering.ensure_fingering`: "auto" estimates the missing fingers
+    (for a MIDI file, hands come from its tracks/channels when they name them), "file"
+    requires the file's own complete fingering, "none" returns it unfingered.
 
     Raises:
         UnknownSongError: not a built-in name and does not look like a path (close matches are
             suggested).
         MidiFileError: looks like a path (has a suffix or a directory part) but does not exist.
         MusicError: the file exists but its suffix is not .mid, .midi or .txt; or any reader
-            error.
+            error; or ``fingering="file"`` and some notes have no finger.
+        PigDatasetError: a PIG piece name before ``pianist import-pig`` has run.
     """
+    song = _load_song(name_or_path, out_of_range)
+    if fingering is None or fingering == "none":
+        return song
+    if fingering == "auto" and not song.has_full_fingering:
+        hints = None
+        if not isinstance(name_or_path, Song):
+            path = Path(os.fspath(name_or_path))
+            if path.suffix.lower() in (".mid", ".midi") and path.is_file():
+                hints = midi_hand_hints(path, song)
+        return assign_fingering(song, hands=hints)
+    return ensure_fingering(song, fingering)
+
+
+def _load_song(
+    name_or_path: str | os.PathLike[str] | Song,
+    out_of_range: Literal["error", "drop"],
+) -> Song:
     if isinstance(name_or_path, Song):
         return name_or_path
     text = os.fspath(name_or_path)
     if isinstance(name_or_path, str) and text in _SONGS:
         return get_song(text)
+    if isinstance(name_or_path, str) and text in list_open_songs():
+        return load_open_song(text)
+    if isinstance(name_or_path, str) and not Path(text).exists():
+        if is_pig_name(text) or text in ETUDE_12 or find_pig_song(text) is not None:
+            return load_pig_song(text)
     path = Path(text)
     looks_like_path = bool(path.suffix) or "/" in text or os.sep in text
     if not path.exists():
