@@ -22,7 +22,7 @@ def run(*args: str) -> subprocess.CompletedProcess:
 def test_help_lists_subcommands():
     result = run("--help")
     assert result.returncode == 0
-    for name in ("songs", "info", "play"):
+    for name in ("songs", "info", "play", "import-pig"):
         assert name in result.stdout
 
 
@@ -218,7 +218,7 @@ def test_corrupt_soundfont_is_refused(tmp_path):
     assert len(result.stderr.strip().splitlines()) == 1
 
 
-def test_unfingered_midi_needs_fingering_for_the_planner(tmp_path):
+def test_unfingered_midi_is_fingered_automatically_unless_file_is_asked(tmp_path):
     path = tmp_path / "plain.mid"
     midi = mido.MidiFile()
     track = mido.MidiTrack()
@@ -228,6 +228,26 @@ def test_unfingered_midi_needs_fingering_for_the_planner(tmp_path):
     ]
     midi.tracks.append(track)
     midi.save(path)
-    result = run("play", str(path), "--out", str(tmp_path / "o"))
-    assert result.returncode == 1 and "no fingering" in result.stderr
+    result = run("play", str(path), "--out", str(tmp_path / "o"), "--fingering", "file")
+    assert result.returncode == 1 and "no finger" in result.stderr
     assert len(result.stderr.strip().splitlines()) == 1
+    out = tmp_path / "auto"
+    result = run("play", str(path), "--out", str(out), "--physics", "fast", "--no-audio")
+    assert result.returncode == 0, result.stderr
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["fingering"] == "auto" and metrics["controller"] == "planner"
+
+
+def test_songs_lists_the_open_library_with_difficulty(capsys):
+    assert main(["songs", "--suite", "open-etude-12"]) == 0
+    rows = capsys.readouterr().out.strip().splitlines()[1:]
+    assert len(rows) == 12
+    for row in rows:
+        fields = row.split()
+        assert fields[1] == "open-etude-12" and float(fields[2]) >= 20.0
+
+
+def test_import_pig_from_a_wrong_directory_is_one_line(tmp_path):
+    result = run("import-pig", str(tmp_path / "nowhere"), "--dest", str(tmp_path / "d"))
+    assert result.returncode == 1
+    assert len(result.stderr.strip().splitlines()) == 1 and "pianist: error:" in result.stderr

@@ -22,17 +22,55 @@ class CliError(Exception):
 
 @dataclass(frozen=True)
 class Songs:
-    """List the built-in songs."""
+    """List songs with their size and difficulty: duration, notes, notes/s, span, polyphony."""
+
+    suite: Literal["all", "debug", "open-etude-12", "etude-12", "repertoire-150"] = "all"
+    """Which suite: the debug songs, the shipped open library, or imported PIG pieces."""
 
     def run(self) -> None:
-        from pianist.music import get_song, list_songs, song_description
+        import warnings
 
-        for name in list_songs():
-            song = get_song(name)
-            _out(
-                f"{name:22s} {song.duration_s:5.1f} s {song.num_notes:4d} notes  "
-                f"{song_description(name)}"
-            )
+        from pianist.music import SUITES, PigDatasetError, list_songs, load_song, song_stats
+
+        suites = SUITES if self.suite == "all" else (self.suite,)
+        _out(
+            f"{'name':40s} {'suite':14s} {'s':>6s} {'notes':>5s} {'n/s':>5s} "
+            f"{'span':>4s} {'poly':>4s}"
+        )
+        for suite in suites:
+            try:
+                names = list_songs(suite)
+            except PigDatasetError:
+                if self.suite == "all":
+                    continue  # PIG suites appear once `pianist import-pig` has run
+                raise
+            for name in names:
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore")  # known-broken PIG pieces warn on load
+                    stats = song_stats(load_song(name))
+                span = "-" if stats.max_hand_span is None else str(stats.max_hand_span)
+                _out(
+                    f"{name:40s} {suite:14s} {stats.duration_s:6.1f} {stats.num_notes:5d} "
+                    f"{stats.notes_per_second:5.1f} {span:>4s} {stats.max_polyphony:4d}"
+                )
+
+
+@dataclass(frozen=True)
+class ImportPig:
+    """Convert a copy of the PIG fingering dataset into songs (RoboPianist etude-12 and
+    repertoire-150 names then resolve like built-in songs)."""
+
+    src: tyro.conf.Positional[Path]
+    """The dataset folder (e.g. PianoFingeringDataset_v1.2, with FingeringFiles/ and List.csv)."""
+    dest: Path | None = None
+    """Where to write the songs (default: $PIANIST_DATA, else the XDG data folder)."""
+    strict: bool = True
+    """Stop at the first unreadable file (else skip it and report it)."""
+
+    def run(self) -> None:
+        from pianist.music import import_pig
+
+        _out(import_pig(self.src, self.dest, strict=self.strict).summary())
 
 
 @dataclass(frozen=True)
@@ -43,9 +81,16 @@ class Info:
     """A built-in song name, a MIDI file (.mid) or a PIG fingering file (.txt)."""
 
     def run(self) -> None:
-        from pianist.music import goal_frames, load_song, pitch_to_name
+        from pianist.music import (
+            check_playability,
+            goal_frames,
+            load_song,
+            pitch_to_name,
+            song_stats,
+        )
 
         song = load_song(self.song)
+        stats = song_stats(song)
         frames = goal_frames(song)
         pitches = [n.pitch for n in song.notes]
         hands = ", ".join(sorted(song.hands)) or "unknown (no fingering)"
@@ -64,7 +109,11 @@ class Info:
             f"sustain:    {len(song.sustain)} pedal intervals",
             f"goal:       {frames.num_frames} frames at {1 / frames.dt:g} Hz, "
             f"max {int(frames.keys.sum(axis=1).max(initial=0))} keys at once",
+            f"difficulty: {stats.notes_per_second:.1f} notes/s (peak {stats.peak_notes_per_second}"
+            f" in 1 s), polyphony {stats.max_polyphony}, hand span "
+            + ("-" if stats.max_hand_span is None else f"{stats.max_hand_span} semitones"),
         ]
+        lines += [f"warning:    {problem}" for problem in check_playability(song)]
         _out("\n".join(lines))
 
 
@@ -80,6 +129,10 @@ class Play:
     """A built-in song name, a MIDI file (.mid) or a PIG fingering file (.txt)."""
     controller: str = "planner"
     """planner, random, zero, or replay:ACTIONS.npy."""
+    fingering: Literal["auto", "file", "none"] = "auto"
+    """auto: keep the song's fingering and estimate what is missing (hands from a MIDI's
+    tracks when they say so); file: require the file's own; none: no labels (the fingering
+    reward then matches fingertips to keys; the planner needs fingers)."""
     out: Path = Path("out")
     """Output directory (created if missing)."""
     physics: Literal["faithful", "fast"] = "faithful"
@@ -109,12 +162,12 @@ class Play:
         from pianist.music import load_song, write_midi
 
         # Everything that can be checked before the (long) episode is checked first.
-        song = load_song(self.song)
+        song = load_song(self.song, fingering=self.fingering)
         if self.controller == "planner" and song.fingering_coverage < 1.0:
             missing = sum(n.finger is None for n in song.notes)
             raise CliError(
                 f"{self.song}: {missing} of {song.num_notes} notes have no fingering; the "
-                "planner needs a finger for every note (use a PIG file or a fingered song)"
+                "planner needs a finger for every note (use --fingering auto)"
             )
         controller = make_controller(self.controller)
         if self.audio:
@@ -123,6 +176,8 @@ class Play:
             check_soundfont(self.soundfont)
         _prepare_dir(self.out)
         env_options = _env_options_for(self.controller)
+        if self.fingering == "none":
+            env_options["fingering_reward"] = "optimal"
         env = PianoEnv(song, physics=self.physics, **env_options)
         if self.video:
             from pianist.media import check_video_options
@@ -136,6 +191,7 @@ class Play:
         metrics.update(
             song=self.song,
             controller=self.controller,
+            fingering=self.fingering,
             physics=self.physics,
             seed=self.seed,
             env_options={k: list(v) if isinstance(v, tuple) else v for k, v in env_options.items()},
@@ -216,6 +272,7 @@ Command = (
     Annotated[Songs, tyro.conf.subcommand("songs")]
     | Annotated[Info, tyro.conf.subcommand("info")]
     | Annotated[Play, tyro.conf.subcommand("play")]
+    | Annotated[ImportPig, tyro.conf.subcommand("import-pig")]
 )
 
 
