@@ -251,3 +251,18 @@ def test_import_pig_from_a_wrong_directory_is_one_line(tmp_path):
     result = run("import-pig", str(tmp_path / "nowhere"), "--dest", str(tmp_path / "d"))
     assert result.returncode == 1
     assert len(result.stderr.strip().splitlines()) == 1 and "pianist: error:" in result.stderr
+
+
+def test_play_with_the_mpc_records_its_speed(tmp_path):
+    out = tmp_path / "mpc"
+    spec = "mpc:paper,num_samples=3,iterations=1"
+    args = ["play", "c-major-chords", "--controller", spec, "--physics", "fast"]
+    assert main([*args, "--out", str(out), "--no-audio"]) == 0
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["mpc_steps"] == 81 and metrics["mpc_realtime_factor"] > 0
+    assert metrics["controller_options"]["num_samples"] == 3
+
+
+def test_bad_mpc_spec_is_one_line(tmp_path):
+    result = run("play", "c-major-chords", "--controller", "mpc:paper,num_samples=-1")
+    assert result.returncode == 1 and len(result.stderr.strip().splitlines()) == 1

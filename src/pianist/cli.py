@@ -128,7 +128,9 @@ class Play:
     song: tyro.conf.Positional[str]
     """A built-in song name, a MIDI file (.mid) or a PIG fingering file (.txt)."""
     controller: str = "planner"
-    """planner, random, zero, or replay:ACTIONS.npy."""
+    """planner; mpc (the paper's predictive sampling; mpc:tenth, or e.g.
+    mpc:paper,num_samples=20,sigma=0.1,horizon_s=0.3,num_knots=3,iterations=8); random; zero;
+    or replay:ACTIONS.npy."""
     fingering: Literal["auto", "file", "none"] = "auto"
     """auto: keep the song's fingering and estimate what is missing (hands from a MIDI's
     tracks when they say so); file: require the file's own; none: no labels (the fingering
@@ -188,6 +190,11 @@ class Play:
         episode = run_episode(env, controller, seed=self.seed, progress=sys.stderr.isatty())
         wall = time.perf_counter() - start
         metrics = episode.metrics()
+        if hasattr(controller, "stats"):  # planning controllers report their own timing
+            metrics.update(controller.stats())
+            metrics["controller_options"] = controller.options_dict()
+        if hasattr(controller, "close"):
+            controller.close()
         metrics.update(
             song=self.song,
             controller=self.controller,

@@ -75,11 +75,17 @@ class ReplayController:
 
 
 def make_controller(spec: str, **kwargs: Any) -> Controller:
-    """A controller from its name: ``planner``, ``random``, ``zero`` or ``replay:PATH.npy``."""
+    """A controller from its name: ``planner``, ``mpc[:SPEC]``, ``random``, ``zero`` or
+    ``replay:PATH.npy``."""
     if spec == "planner":
         from pianist.control.planner import IKPlanner
 
         return IKPlanner()
+    if spec == "mpc" or spec.startswith("mpc:"):
+        from pianist.control.mpc import make_mpc
+
+        # mpc, mpc:PRESET or mpc:PRESET,field=value,... (see pianist.control.mpc.make_mpc)
+        return make_mpc(spec.partition(":")[2] or None)
     if spec == "random":
         return RandomController()
     if spec == "zero":
@@ -87,5 +93,6 @@ def make_controller(spec: str, **kwargs: Any) -> Controller:
     if spec.startswith("replay:"):
         return ReplayController(spec.removeprefix("replay:"))
     raise ValueError(
-        f"unknown controller {spec!r}; use planner, random, zero or replay:ACTIONS.npy"
+        f"unknown controller {spec!r}; use planner, mpc[:PRESET,...], random, zero or "
+        "replay:ACTIONS.npy"
     )
