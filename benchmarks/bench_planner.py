@@ -9,7 +9,8 @@ it (the benchmark's defaults plus the forearm height slide, see ``planner_env_op
 - plan: the planner's share of the wall-clock time (its ``act`` calls against the whole loop);
 - dF1: F1 on fast minus F1 on faithful, to check that the fast preset keeps results.
 
-Run: ``python benchmarks/bench_planner.py [--songs a,b] [--repeats 3] [--json out.json]``.
+Run: ``python benchmarks/bench_planner.py [--songs a,b | --suite open-etude-12]
+[--presets faithful,fast] [--repeats 3] [--json out.json]``.
 """
 
 from __future__ import annotations
@@ -67,28 +68,33 @@ def bench_song(song: str, physics: str, repeats: int) -> dict[str, float]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--songs", default=",".join(list_songs()))
+    parser.add_argument("--suite", default=None, help="all songs of a suite, e.g. open-etude-12")
+    parser.add_argument("--presets", default=",".join(PRESETS))
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--json", default=None, help="also write the results to this file")
     args = parser.parse_args()
+    songs = list_songs(args.suite) if args.suite else args.songs.split(",")
+    presets = args.presets.split(",")
 
     results: dict[str, dict[str, dict[str, float]]] = {}
-    header = f"{'song':24s} {'preset':9s} {'P':>6s} {'R':>6s} {'F1':>6s} {'rtf':>6s} {'plan':>5s}"
+    header = f"{'song':34s} {'preset':9s} {'P':>6s} {'R':>6s} {'F1':>6s} {'rtf':>6s} {'plan':>5s}"
     print(header)
-    for song in args.songs.split(","):
+    for song in songs:
         results[song] = {}
-        for physics in PRESETS:
+        for physics in presets:
             r = bench_song(song, physics, args.repeats)
             results[song][physics] = r
             print(
-                f"{song:24s} {physics:9s} {r['precision']:6.3f} {r['recall']:6.3f} "
+                f"{song:34s} {physics:9s} {r['precision']:6.3f} {r['recall']:6.3f} "
                 f"{r['f1']:6.3f} {r['realtime_factor']:6.1f} {r['planner_share']:5.2f}",
                 flush=True,
             )
-    print(f"\n{'song':24s} {'dF1 (fast - faithful)':>22s}")
-    for song, by_preset in results.items():
-        print(f"{song:24s} {by_preset['fast']['f1'] - by_preset['faithful']['f1']:+22.3f}")
-    f1 = {p: np.mean([r[p]["f1"] for r in results.values()]) for p in PRESETS}
-    print(f"\nmean F1: faithful {f1['faithful']:.3f}, fast {f1['fast']:.3f}")
+    if set(PRESETS) <= set(presets):
+        print(f"\n{'song':24s} {'dF1 (fast - faithful)':>22s}")
+        for song, by_preset in results.items():
+            print(f"{song:24s} {by_preset['fast']['f1'] - by_preset['faithful']['f1']:+22.3f}")
+    for p in presets:
+        print(f"mean F1 {p}: {np.mean([r[p]['f1'] for r in results.values()]):.3f}")
     if args.json:
         with open(args.json, "w") as handle:
             json.dump(results, handle, indent=2)

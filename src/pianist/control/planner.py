@@ -66,7 +66,7 @@ class PlannerConfig:
     press_lead_frames: int = 1
     """Frames ahead of the scored frame whose keys the fingers go for (servo lag)."""
     hover_lead_s: float = 0.25
-    align_tolerance_m: float = 0.006
+    align_tolerance_m: float = 0.009
     """How close (across the keys) to a white key's press point a finger must be before it
     presses, half that for a black key: a finger that lands beside its key sticks to the
     neighbour by friction."""
