@@ -213,21 +213,25 @@ class _Hand:
     def _sample_postures(self, m, data, cfg: PlannerConfig, rng: np.random.Generator) -> None:
         """Fingertip positions relative to the forearm for random postures of each finger.
 
-        Fingers do not share joints, so one kinematics pass samples all five at once.
+        Fingers do not share joints, so one kinematics pass samples all five at once; the
+        joint positions of every sample are laid out in one array first so that the loop
+        only copies a row and runs ``mj_kinematics``.
         """
         mujoco.mj_resetData(m, data)
         self.lower(data, cfg)
+        self.set_wrist(data, None, cfg)
+        batch = np.tile(data.qpos, (cfg.samples, 1))
         for finger in self.fingers:
             finger.samples = rng.uniform(finger.low, finger.high, (cfg.samples, finger.dof))
-            finger.sample_tips = np.empty((cfg.samples, 3))
-        self.set_wrist(data, None, cfg)
+            for i, (qpos, share) in enumerate(zip(finger.qpos, finger.share, strict=True)):
+                batch[:, qpos] = finger.samples[:, i : i + 1] * share
+        tips = np.empty((cfg.samples, FINGERS_PER_HAND, 3))
         for s in range(cfg.samples):
-            for finger in self.fingers:
-                finger.set(data, finger.samples[s])
+            data.qpos[:] = batch[s]
             mujoco.mj_kinematics(m, data)
-            origin = data.xpos[self.forearm_body]
-            for finger in self.fingers:
-                finger.sample_tips[s] = data.site_xpos[finger.site] - origin
+            tips[s] = data.site_xpos[self.sites] - data.xpos[self.forearm_body]
+        for f, finger in enumerate(self.fingers):
+            finger.sample_tips = tips[:, f]
         # The lifted posture: the sample nearest the rest posture's fingertip, lifted clear.
         mujoco.mj_resetData(m, data)
         self.lower(data, cfg)
