@@ -4,7 +4,8 @@ Each control step it
 
 1. plans where each forearm should be: for every goal frame, the slide position along the
    keyboard that puts the assigned fingers over their keys, held until the hand's next note
-   and commanded ``forearm_lead_s`` ahead so the hand arrives in time; with the optional
+   and reached by a quick move (servo dynamics inverted) that ends as the note starts, the
+   hand letting go of its keys for a large move; with the optional
    height slide (``tz``) the forearm is held low enough for the thumb to reach a key's bottom;
 2. gives every fingertip a target: the assigned fingertip pressed below the top of each key
    due at the coming frame (once it is over the key), fingers due soon hovering above their
@@ -70,7 +71,10 @@ class PlannerConfig:
     """How close (across the keys) to a white key's press point a finger must be before it
     presses, half that for a black key: a finger that lands beside its key sticks to the
     neighbour by friction."""
-    forearm_lead_s: float = 0.2
+    forearm_move_s: float = 0.1
+    shift_threshold_m: float = 0.015
+    """A forearm move larger than this lifts the hand's fingers for its duration."""
+    """Duration of the forearm's move to a new hand position, ending as the note starts."""
     forearm_separation_m: float = 0.17
     """Closest the two forearm roots may come along the keyboard (they touch below ~0.15)."""
     thumb_offset_m: float = 0.03
@@ -138,6 +142,8 @@ class IKPlanner:
             hand.plan_forearm(goal, self.key_point)
         if len(self.hands) == 2:
             _keep_forearms_apart(*self.hands, cfg.forearm_separation_m)
+        for hand in self.hands:
+            hand.plan_commands(m, self.dt, cfg)
 
     # ----------------------------------------------------------------------------- acting
 
@@ -185,6 +191,7 @@ class _Hand:
         self.tx_qpos = m.jnt_qposadr[m.joint(f"{prefix}forearm_tx").id]
         self.tx_range = m.jnt_range[m.joint(f"{prefix}forearm_tx").id]
         self.tx_actuator = m.actuator(f"{prefix}A_forearm_tx").id
+        self.tx_dof = m.jnt_dofadr[m.joint(f"{prefix}forearm_tx").id]
         self.root_y = C.FOREARM_ROOT_POS_M[hand.side][1]
         tz = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, f"{prefix}A_forearm_tz")
         self.tz_actuator = tz if tz >= 0 else None
@@ -206,6 +213,7 @@ class _Hand:
         self.finger_actuators = np.concatenate([f.actuators for f in self.fingers])
         self.jacp = np.zeros((3, m.nv))
         self.pressing = np.zeros(FINGERS_PER_HAND, dtype=bool)
+        self.free = np.zeros(0, dtype=bool)
         self._sample_postures(m, data, cfg, rng)
 
     # -------------------------------------------------------------------- postures
@@ -288,11 +296,44 @@ class _Hand:
             wanted[fill] = wanted[known[nxt[fill]]]
         self.tx_plan = np.clip(wanted, *self.tx_range)
 
+    def plan_commands(self, m, dt: float, cfg: PlannerConfig) -> None:
+        """Slide commands, shape (T,), that make the forearm follow its plan in time.
+
+        The plan's steps become minimum-jerk moves of ``forearm_move_s`` that end as the note
+        starts; the command inverts the slide's servo dynamics along that path,
+        ``u = y + (c / kp) y' + (M / kp) y''``: the critically damped servo alone needs
+        ~0.45 s to cover 90 % of a jump, which makes the hand late for every shift.
+        """
+        plan = self.tx_plan
+        T = len(plan)
+        n = max(1, round(cfg.forearm_move_s / dt))
+        # A pressed finger pins the hand to its key by friction: before a shift too large for
+        # the fingers to absorb, the hand lets go of its keys for the move's duration.
+        self.free = np.zeros(T, dtype=bool)
+        shifts = np.flatnonzero(np.abs(np.diff(plan)) > cfg.shift_threshold_m) + 1
+        for k in shifts:
+            self.free[max(0, k - n) : k] = True
+        s = (np.arange(n) + 0.5) / n
+        weights = s**2 * (1 - s) ** 2  # minimum-jerk velocity profile
+        weights /= weights.sum()
+        padded = np.concatenate([plan, np.full(n + 1, plan[-1])])
+        # y[t]: where the forearm should be at the end of step t.
+        y = np.array([weights @ padded[t + 1 : t + 1 + n] for t in range(T)])
+        ext = np.concatenate([[0.0, 0.0], y, [y[-1]]])  # the slide starts at home (0)
+        # Midpoint of step t: position, velocity and acceleration by finite differences.
+        mid = (ext[2:-1] + ext[1:-2]) / 2
+        vel = (ext[2:-1] - ext[1:-2]) / dt
+        acc = (ext[3:] - ext[2:-1] - ext[1:-2] + ext[:-3]) / (2 * dt**2)
+        kp = m.actuator_gainprm[self.tx_actuator, 0]
+        damping = -m.actuator_biasprm[self.tx_actuator, 2] + m.dof_damping[self.tx_dof]
+        mass = m.body_subtreemass[self.forearm_body]
+        command = mid + (damping / kp) * vel + (mass / kp) * acc
+        self.tx_command = np.clip(command, *m.actuator_ctrlrange[self.tx_actuator])
+
     def command_forearm(self, ctrl: np.ndarray, t: int, dt: float, cfg: PlannerConfig) -> None:
-        lead = round(cfg.forearm_lead_s / dt)
         # The fingers are solved for where the forearm is now, not where it is going: they
         # then reach their keys even while the forearm is still on its way.
-        ctrl[self.tx_actuator] = self.tx_plan[min(t + lead, len(self.tx_plan) - 1)]
+        ctrl[self.tx_actuator] = self.tx_command[min(t, len(self.tx_command) - 1)]
         if self.tz_actuator is not None:
             ctrl[self.tz_actuator] = cfg.hand_height_m
 
@@ -328,6 +369,9 @@ class _Hand:
                 active[finger] = True
                 if frame != now and key_down[key]:
                     targets[finger, 2] = top + cfg.release_height_m  # re-strike: up first
+                    continue
+                if self.free[frame]:
+                    targets[finger, 2] = top + cfg.hover_height_m  # the hand is moving
                     continue
                 tolerance = cfg.align_tolerance_m * (0.5 if C.BLACK_KEY_MASK[key] else 1.0)
                 # Across the keys is what matters; along a key a few mm either way still press.
