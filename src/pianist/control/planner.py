@@ -39,7 +39,7 @@ class PlannerConfig:
     white_press_depth_m: float = 0.02
     """How far below a white key's top the fingertip is sent: past the key's travel, so the
     position servo keeps pushing it down."""
-    black_press_depth_m: float = 0.025
+    black_press_depth_m: float = 0.045
     """The same for a black key (shorter lever, so it needs more force)."""
     thumb_extra_depth_m: float = 0.02
     """Added to the thumb's press depth: its servos are weak for the force a key needs."""
@@ -58,7 +58,7 @@ class PlannerConfig:
     in front of the black keys."""
     thumb_white_press_x_m: float = 0.064
     """The same for the thumb, which reaches lowest near the front edge."""
-    black_press_x_m: float = 0.003
+    black_press_x_m: float = 0.01
     """Where along a black key (world x) a finger presses it, near its front end."""
     hand_height_m: float = -0.03
     """Height command of the forearm's ``tz`` slide (when the scene has one)."""
@@ -71,6 +71,8 @@ class PlannerConfig:
     """How close (across the keys) to a white key's press point a finger must be before it
     presses, half that for a black key: a finger that lands beside its key sticks to the
     neighbour by friction."""
+    keep_pressing_ratio: float = 1.3
+    """A pressing finger keeps pressing until it is this many tolerances off its key."""
     forearm_move_s: float = 0.1
     shift_threshold_m: float = 0.015
     """A forearm move larger than this lifts the hand's fingers for its duration."""
@@ -310,15 +312,17 @@ class _Hand:
         # A pressed finger pins the hand to its key by friction: before a shift too large for
         # the fingers to absorb, the hand lets go of its keys for the move's duration.
         self.free = np.zeros(T, dtype=bool)
+        # Moves end ``press_lead_frames`` before the note, so that fingers press a still hand.
+        lead = cfg.press_lead_frames
         shifts = np.flatnonzero(np.abs(np.diff(plan)) > cfg.shift_threshold_m) + 1
         for k in shifts:
-            self.free[max(0, k - n) : k] = True
+            self.free[max(0, k - n - lead) : max(0, k - lead)] = True
         s = (np.arange(n) + 0.5) / n
         weights = s**2 * (1 - s) ** 2  # minimum-jerk velocity profile
         weights /= weights.sum()
-        padded = np.concatenate([plan, np.full(n + 1, plan[-1])])
+        padded = np.concatenate([plan, np.full(n + 1 + lead, plan[-1])])
         # y[t]: where the forearm should be at the end of step t.
-        y = np.array([weights @ padded[t + 1 : t + 1 + n] for t in range(T)])
+        y = np.array([weights @ padded[t + 1 + lead : t + 1 + lead + n] for t in range(T)])
         ext = np.concatenate([[0.0, 0.0], y, [y[-1]]])  # the slide starts at home (0)
         # Midpoint of step t: position, velocity and acceleration by finite differences.
         mid = (ext[2:-1] + ext[1:-2]) / 2
@@ -379,7 +383,7 @@ class _Hand:
                 down = real_tips[finger, 2] < top
                 # A pressing finger keeps pressing while it stays roughly on its key; one that
                 # slid off (beside a black key, say) comes up to try again.
-                if miss <= tolerance or (down and miss <= 2 * tolerance):
+                if miss <= tolerance or (down and miss <= cfg.keep_pressing_ratio * tolerance):
                     extra = cfg.thumb_extra_depth_m if finger == 0 else 0.0
                     targets[finger, 2] = top - planner.key_depth[key] - extra
                     self.pressing[finger] = True
