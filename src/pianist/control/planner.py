@@ -375,7 +375,8 @@ class _Hand:
                     targets[finger, 2] = top + cfg.release_height_m  # re-strike: up first
                     continue
                 if self.free[frame]:
-                    targets[finger, 2] = top + cfg.hover_height_m  # the hand is moving
+                    # The hand is moving: its fingers stay clear, or they catch on keys.
+                    targets[finger] = self.lift_tips[finger] + origin
                     continue
                 tolerance = cfg.align_tolerance_m * (0.5 if C.BLACK_KEY_MASK[key] else 1.0)
                 # Across the keys is what matters; along a key a few mm either way still press.
@@ -389,7 +390,7 @@ class _Hand:
                     self.pressing[finger] = True
                 else:
                     targets[finger, 2] = top + cfg.hover_height_m
-        for t in range(lead + 1, hover_end):
+        for t in range(lead + 1, hover_end if not self.free[now] else lead + 1):
             for key in np.flatnonzero(goal.keys[t]):
                 finger = goal.fingers[t, key] - self.finger_offset
                 if 0 <= finger < FINGERS_PER_HAND and not active[finger]:
