@@ -71,6 +71,8 @@ class PlannerConfig:
     """How close (across the keys) to a white key's press point a finger must be before it
     presses, half that for a black key: a finger that lands beside its key sticks to the
     neighbour by friction."""
+    align_along_m: float = 0.02
+    """How far behind the press point (x) a finger other than the thumb may be and press."""
     keep_pressing_ratio: float = 1.3
     """A pressing finger keeps pressing until it is this many tolerances off its key."""
     forearm_move_s: float = 0.1
@@ -379,8 +381,11 @@ class _Hand:
                     targets[finger] = self.lift_tips[finger] + origin
                     continue
                 tolerance = cfg.align_tolerance_m * (0.5 if C.BLACK_KEY_MASK[key] else 1.0)
-                # Across the keys is what matters; along a key a few mm either way still press.
+                # Across the keys is what matters; along a key a few mm either way still press,
+                # but a finger too far back over a white key would land on a black one.
                 miss = abs(real_tips[finger, 1] - point[1])
+                if finger and real_tips[finger, 0] < point[0] - cfg.align_along_m:
+                    miss = np.inf
                 down = real_tips[finger, 2] < top
                 # A pressing finger keeps pressing while it stays roughly on its key; one that
                 # slid off (beside a black key, say) comes up to try again.
