@@ -90,9 +90,9 @@ def main() -> None:
                 flush=True,
             )
     if set(PRESETS) <= set(presets):
-        print(f"\n{'song':24s} {'dF1 (fast - faithful)':>22s}")
+        print(f"\n{'song':34s} {'dF1 (fast - faithful)':>22s}")
         for song, by_preset in results.items():
-            print(f"{song:24s} {by_preset['fast']['f1'] - by_preset['faithful']['f1']:+22.3f}")
+            print(f"{song:34s} {by_preset['fast']['f1'] - by_preset['faithful']['f1']:+22.3f}")
     for p in presets:
         print(f"mean F1 {p}: {np.mean([r[p]['f1'] for r in results.values()]):.3f}")
     if args.json:
