@@ -71,3 +71,12 @@ def test_actions_are_normalised_with_the_goal_pedal():
     pedal_down = episode.actions[:, -1] > 0
     # The pedal action follows the goal one frame ahead.
     np.testing.assert_array_equal(pedal_down[:-1], env.goal.sustain[1 : len(pedal_down)])
+
+
+def test_the_papers_scene_without_the_height_slide_still_plays_the_fingers():
+    # Index, middle and ring on C4, D4, E4: the wrist is flexed so they reach the key bottoms.
+    notes = tuple(Note(60 + 2 * i, 0.5 + 0.6 * i, 1.0 + 0.6 * i, finger=1 + i) for i in range(3))
+    env = PianoEnv(Song(notes, name="fingers"), physics="fast")  # forearm slides tx, ty only
+    episode = run_episode(env, IKPlanner(), seed=0)
+    assert {n.pitch for n in episode.performance().notes} == {60, 62, 64}
+    assert episode.metrics()["precision"] >= 0.95

@@ -63,10 +63,14 @@ class PlannerConfig:
     hand_height_m: float = -0.03
     """Height command of the forearm's ``tz`` slide (when the scene has one)."""
     wrist_pose: tuple[float, float] = (0.0, 0.0)
-    """WRJ2 and WRJ1, held constant."""
+    """WRJ2 and WRJ1, held constant, when the forearm has its height slide."""
+    wrist_pose_without_tz: tuple[float, float] = (0.0, 0.25)
+    """The same without it: the wrist flexed, else the fingers cannot reach a key's bottom
+    from the home height."""
     press_lead_frames: int = 1
     """Frames ahead of the scored frame whose keys the fingers go for (servo lag)."""
     hover_lead_s: float = 0.25
+    """How long before its note a finger comes to hover over its key."""
     align_tolerance_m: float = 0.009
     """How close (across the keys) to a white key's press point a finger must be before it
     presses, half that for a black key: a finger that lands beside its key sticks to the
@@ -76,9 +80,9 @@ class PlannerConfig:
     keep_pressing_ratio: float = 1.3
     """A pressing finger keeps pressing until it is this many tolerances off its key."""
     forearm_move_s: float = 0.1
+    """Duration of the forearm's move to a new hand position, ending a frame before the note."""
     shift_threshold_m: float = 0.015
     """A forearm move larger than this lifts the hand's fingers for its duration."""
-    """Duration of the forearm's move to a new hand position, ending as the note starts."""
     forearm_separation_m: float = 0.17
     """Closest the two forearm roots may come along the keyboard (they touch below ~0.15)."""
     thumb_offset_m: float = 0.03
@@ -100,8 +104,9 @@ class IKPlanner:
 
     Use like any controller: ``reset(env)``, then ``act(observation)`` each step. Needs every
     note fingered and the ``tx`` forearm slide; works with the reduced or the full action
-    space, and plays thumb notes on white keys only when the scene has the ``tz`` slide
-    (see :func:`planner_env_options`).
+    space and with one or two hands. Without the ``tz`` slide (the paper's scene) the wrist is
+    flexed so the fingers reach, but the thumb cannot press a white key at all: use
+    :func:`planner_env_options`.
     """
 
     def __init__(self, config: PlannerConfig | None = None) -> None:
@@ -273,7 +278,8 @@ class _Hand:
             data.qpos[self.tz_qpos] = cfg.hand_height_m
 
     def set_wrist(self, data, ctrl: np.ndarray | None, cfg: PlannerConfig) -> None:
-        for (actuator, qpos), angle in zip(self.wrist, cfg.wrist_pose, strict=False):
+        pose = cfg.wrist_pose if self.tz_qpos is not None else cfg.wrist_pose_without_tz
+        for (actuator, qpos), angle in zip(self.wrist, pose, strict=False):
             data.qpos[qpos] = angle
             if ctrl is not None:
                 ctrl[actuator] = angle
