@@ -266,3 +266,36 @@ def test_play_with_the_mpc_records_its_speed(tmp_path):
 def test_bad_mpc_spec_is_one_line(tmp_path):
     result = run("play", "c-major-chords", "--controller", "mpc:paper,num_samples=-1")
     assert result.returncode == 1 and len(result.stderr.strip().splitlines()) == 1
+
+
+def test_train_resume_eval_and_play_a_policy(tmp_path):
+    run_dir = tmp_path / "run"
+    args = ["train", "c-major-chords", "--preset", "fast-small", "--steps", "120"]
+    assert main([*args, "--out", str(run_dir), "--no-progress"]) == 0
+    assert (run_dir / "config.json").is_file() and (run_dir / "log.jsonl").is_file()
+    # Resuming continues to a larger total and says from where.
+    result = run("train", "--resume", str(run_dir), "--steps", "160", "--no-progress")
+    assert result.returncode == 0, result.stderr
+    assert "resumed" in result.stdout and "step 160" in result.stdout
+    assert main(["eval", str(run_dir), "c-major-chords", "--out", str(tmp_path / "ev")]) == 0
+    metrics = json.loads((tmp_path / "ev" / "metrics.json").read_text())
+    assert metrics["checkpoint_step"] == 160 and metrics["preset"] == "fast-small"
+    out = tmp_path / "play"
+    spec = f"policy:{run_dir}"
+    assert main(["play", "c-major-chords", "--controller", spec, "--out", str(out), "--no-audio"]) == 0
+    assert json.loads((out / "metrics.json").read_text())["steps"] == 81
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["train", "c-major-chords", "--preset", "nope"], "unknown preset"),
+        (["train"], "give a SONG"),
+        (["eval", "/no/such/run", "c-major-chords"], "run directory not found"),
+        (["play", "c-major-chords", "--controller", "policy:/no/such/run"], "not found"),
+    ],
+)
+def test_training_commands_fail_in_one_line(tmp_path, args, message):
+    result = run(*args)
+    assert result.returncode == 1 and message in result.stderr, result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1

@@ -16,6 +16,7 @@ ALLOWED = {
     "control": {"music", "sim", "env"},
     "eval": {"music", "sim", "env", "control"},
     "media": {"music", "sim", "env", "eval"},
+    "agents": {"music", "sim", "env", "control", "eval"},
 }
 
 

@@ -129,8 +129,8 @@ class Play:
     """A built-in song name, a MIDI file (.mid) or a PIG fingering file (.txt)."""
     controller: str = "planner"
     """planner; mpc (the paper's predictive sampling; mpc:tenth, or e.g.
-    mpc:paper,num_samples=20,sigma=0.1,horizon_s=0.3,num_knots=3,iterations=8); random; zero;
-    or replay:ACTIONS.npy."""
+    mpc:paper,num_samples=20,sigma=0.1,horizon_s=0.3,num_knots=3,iterations=8); policy:RUN_DIR
+    (a trained agent); random; zero; or replay:ACTIONS.npy."""
     fingering: Literal["auto", "file", "none"] = "auto"
     """auto: keep the song's fingering and estimate what is missing (hands from a MIDI's
     tracks when they say so); file: require the file's own; none: no labels (the fingering
@@ -171,16 +171,26 @@ class Play:
                 f"{self.song}: {missing} of {song.num_notes} notes have no fingering; the "
                 "planner needs a finger for every note (use --fingering auto)"
             )
-        controller = make_controller(self.controller)
+        policy = self.controller.startswith("policy:")
+        if policy:
+            from pianist.agents import PolicyController
+
+            controller = PolicyController(self.controller.removeprefix("policy:"))
+        else:
+            controller = make_controller(self.controller)
         if self.audio:
             from pianist.media import check_soundfont
 
             check_soundfont(self.soundfont)
         _prepare_dir(self.out)
-        env_options = _env_options_for(self.controller)
-        if self.fingering == "none":
-            env_options["fingering_reward"] = "optimal"
-        env = PianoEnv(song, physics=self.physics, **env_options)
+        if policy:  # the task the policy was trained on (its physics, hands, lookahead)
+            env_options = controller.env_options(song)
+            env = controller.make_env(song)
+        else:
+            env_options = _env_options_for(self.controller)
+            if self.fingering == "none":
+                env_options["fingering_reward"] = "optimal"
+            env = PianoEnv(song, physics=self.physics, **env_options)
         if self.video:
             from pianist.media import check_video_options
 
@@ -249,6 +259,99 @@ class Play:
             )
 
 
+@dataclass(frozen=True)
+class Train:
+    """Train an agent on a song (SAC/DroQ in JAX): log, checkpoints and config go to --out."""
+
+    song: tyro.conf.Positional[str | None] = None
+    """A built-in song name, a MIDI file or a PIG file (omit with --resume)."""
+    preset: str = "droq-paper"
+    """droq-paper, droq-paper-pipelined, sac, redq, fast, fast-small, fast-utd2, residual."""
+    steps: int | None = None
+    """Total environment steps (default 1M; when resuming, the run's own total)."""
+    out: Path = Path("runs/train")
+    """Run directory (created if missing)."""
+    resume: Path | None = None
+    """Continue the run in this directory from its newest checkpoint."""
+    progress: bool = True
+    """Show a progress bar with steps/s and the latest F1."""
+
+    def run(self) -> None:
+        from pianist.agents import PRESETS, train
+        from pianist.agents.policy import read_run_config
+
+        _require_jax()
+        if self.resume is not None:
+            steps = self.steps or int(read_run_config(self.resume)["steps"])
+            result = train(
+                None, None, steps, self.resume, resume=True, progress=self.progress, message=_out
+            )
+        else:
+            if self.song is None:
+                raise CliError("give a SONG to train on, or --resume DIR")
+            if self.preset not in PRESETS:
+                raise CliError(f"unknown preset {self.preset!r}; choose from {', '.join(PRESETS)}")
+            _prepare_dir(self.out)
+            result = train(
+                self.song,
+                self.preset,
+                self.steps or 1_000_000,
+                self.out,
+                progress=self.progress,
+                message=_out,
+            )
+        f1 = result.last_eval.get("f1", float("nan"))
+        _out(f"trained to step {result.step}: F1 {f1:.3f} -> {result.run_dir}")
+
+
+@dataclass(frozen=True)
+class Eval:
+    """Score a trained policy on a song: metrics.json, performance.mid and actions.npy."""
+
+    run_dir: tyro.conf.Positional[Path]
+    """A training run directory (from `pianist train`)."""
+    song: tyro.conf.Positional[str]
+    """A built-in song name, a MIDI file or a PIG file."""
+    out: Path | None = None
+    """Output directory (default RUN_DIR/eval)."""
+    seed: int = 0
+
+    def run(self) -> None:
+        from pianist.agents import PolicyController
+        from pianist.eval import run_episode
+        from pianist.eval.episode import save_npy_atomic, write_json_atomic
+        from pianist.music import write_midi
+
+        controller = PolicyController(self.run_dir)
+        env = controller.make_env(self.song)
+        out = self.out or self.run_dir / "eval"
+        _prepare_dir(out)
+        episode = run_episode(env, controller, seed=self.seed)
+        metrics = episode.metrics()
+        metrics.update(
+            song=self.song,
+            run=str(self.run_dir),
+            checkpoint_step=controller.step,
+            preset=controller.config.preset,
+            seed=self.seed,
+        )
+        save_npy_atomic(episode.actions, out / "actions.npy")
+        write_midi(episode.performance(), out / "performance.mid")
+        write_json_atomic(metrics, out / "metrics.json")
+        _out(
+            f"{self.song}: precision {metrics['precision']:.3f}  recall {metrics['recall']:.3f}  "
+            f"F1 {metrics['f1']:.3f}  sustain F1 {metrics['sustain_f1']:.3f}  "
+            f"(policy at step {controller.step}) -> {out}"
+        )
+
+
+def _require_jax() -> None:
+    import importlib.util
+
+    if importlib.util.find_spec("jax") is None:
+        raise CliError("training needs JAX: pip install 'pianist[rl]' (jax, flax, optax)")
+
+
 def _env_options_for(controller: str) -> dict[str, Any]:
     """Environment options a controller needs beyond the benchmark's defaults."""
     if controller == "planner":
@@ -280,6 +383,8 @@ Command = (
     | Annotated[Info, tyro.conf.subcommand("info")]
     | Annotated[Play, tyro.conf.subcommand("play")]
     | Annotated[ImportPig, tyro.conf.subcommand("import-pig")]
+    | Annotated[Train, tyro.conf.subcommand("train")]
+    | Annotated[Eval, tyro.conf.subcommand("eval")]
 )
 
 

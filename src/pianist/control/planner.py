@@ -158,7 +158,8 @@ class IKPlanner:
 
     def act(self, observation: object = None) -> np.ndarray:
         cfg, env, m, scratch = self.config, self.env, self.model, self.scratch
-        t, T = env.step_index, self.goal.num_frames
+        T = self.goal.num_frames
+        t = min(env.step_index, T - 1)  # an episode that ran to its end: hold the last frame
         ctrl = np.array(env.data.ctrl)
         scratch.qpos[:] = env.data.qpos
         press_frame = min(t + cfg.press_lead_frames, T - 1)

@@ -1,0 +1,149 @@
+"""Checkpoints of a training run: agent state, replay buffer, counters and RNG states.
+
+Layout of a run directory::
+
+    config.json                   the resolved configuration (song, steps, TrainConfig)
+    log.jsonl                     one JSON object per line: evaluations, episodes, losses
+    checkpoints/latest.json       {"dir": "step_000012345", "step": 12345}
+    checkpoints/step_000012345/   agent.npz (every leaf of the agent state), policy.npz (the
+                                  actor's layers, readable without JAX), replay.npz, state.json
+
+A checkpoint directory is written under a temporary name and renamed when complete, then
+``latest.json`` is replaced atomically: a crash at any point leaves the previous checkpoint
+usable.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import tempfile
+import zipfile
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pianist.agents.config import TrainConfig
+from pianist.eval.episode import write_json_atomic
+
+CHECKPOINTS = "checkpoints"
+LATEST = "latest.json"
+_LOAD_ERRORS = (ValueError, OSError, EOFError, KeyError, zipfile.BadZipFile)
+
+
+def save_checkpoint(
+    run_dir: Path,
+    step: int,
+    agent_leaves: list[np.ndarray],
+    actor_layers: list[tuple[np.ndarray, np.ndarray]],
+    replay_arrays: dict[str, np.ndarray],
+    state: dict[str, Any],
+    keep: int = 2,
+) -> Path:
+    """Write checkpoint ``step`` atomically, point ``latest.json`` at it, keep ``keep``."""
+    root = run_dir / CHECKPOINTS
+    root.mkdir(parents=True, exist_ok=True)
+    name = f"step_{step:09d}"
+    tmp = Path(tempfile.mkdtemp(dir=root, prefix=f".{name}."))
+    try:
+        np.savez(tmp / "agent.npz", **{f"leaf_{i:04d}": a for i, a in enumerate(agent_leaves)})
+        layers = {f"w{i}": w for i, (w, _) in enumerate(actor_layers)}
+        layers.update({f"b{i}": b for i, (_, b) in enumerate(actor_layers)})
+        np.savez(tmp / "policy.npz", **layers)
+        np.savez(tmp / "replay.npz", **replay_arrays)
+        (tmp / "state.json").write_text(json.dumps({**state, "step": step}, indent=1) + "\n")
+        for f in tmp.iterdir():
+            os.chmod(f, 0o644)
+        os.chmod(tmp, 0o755)
+        final = root / name
+        if final.exists():  # a checkpoint of this step from a run that crashed after it
+            shutil.rmtree(final)
+        os.replace(tmp, final)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    write_json_atomic({"dir": name, "step": step}, root / LATEST)
+    older = sorted(p for p in root.glob("step_*") if p.is_dir() and p.name != name)
+    for old in older[: max(0, len(older) - (keep - 1))]:
+        shutil.rmtree(old, ignore_errors=True)
+    for stale in root.glob(".step_*"):  # temporary directories of a crashed save
+        shutil.rmtree(stale, ignore_errors=True)
+    return final
+
+
+def latest_checkpoint(run_dir: str | Path) -> Path:
+    """The directory of the newest complete checkpoint of ``run_dir``."""
+    pointer = Path(run_dir) / CHECKPOINTS / LATEST
+    if not pointer.is_file():
+        raise FileNotFoundError(f"no checkpoint in {run_dir} (missing {pointer})")
+    try:
+        name = json.loads(pointer.read_text())["dir"]
+    except (json.JSONDecodeError, KeyError, TypeError) as exc:
+        raise ValueError(f"{pointer} is corrupt ({exc})") from None
+    path = pointer.parent / str(name)
+    if not path.is_dir():
+        raise FileNotFoundError(f"checkpoint directory {path} named by {pointer} is missing")
+    return path
+
+
+def _load_npz(path: Path) -> dict[str, np.ndarray]:
+    if not path.is_file():
+        raise FileNotFoundError(f"checkpoint file missing: {path}")
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            return {k: data[k] for k in data.files}
+    except _LOAD_ERRORS as exc:
+        raise ValueError(
+            f"checkpoint file {path} is corrupt ({type(exc).__name__}: {exc})"
+        ) from None
+
+
+def load_state(checkpoint: Path) -> dict[str, Any]:
+    path = checkpoint / "state.json"
+    if not path.is_file():
+        raise FileNotFoundError(f"checkpoint file missing: {path}")
+    try:
+        return json.loads(path.read_text())
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"checkpoint file {path} is corrupt ({exc})") from None
+
+
+def load_agent_leaves(checkpoint: Path, template: list[np.ndarray]) -> list[np.ndarray]:
+    """The saved agent leaves, checked against the shapes and dtypes of ``template``."""
+    data = _load_npz(checkpoint / "agent.npz")
+    if len(data) != len(template):
+        raise ValueError(
+            f"checkpoint {checkpoint} holds {len(data)} agent arrays, "
+            f"this agent has {len(template)}"
+        )
+    leaves = [data[f"leaf_{i:04d}"] for i in range(len(template))]
+    for i, (saved, want) in enumerate(zip(leaves, template, strict=True)):
+        if saved.shape != np.shape(want) or saved.dtype != np.asarray(want).dtype:
+            raise ValueError(
+                f"checkpoint {checkpoint}: agent array {i} is {saved.dtype}{saved.shape}, "
+                f"expected {np.asarray(want).dtype}{np.shape(want)} (another configuration?)"
+            )
+    return leaves
+
+
+def load_replay_arrays(checkpoint: Path) -> dict[str, np.ndarray]:
+    return _load_npz(checkpoint / "replay.npz")
+
+
+def load_policy(
+    run_dir: str | Path,
+) -> tuple[TrainConfig, list[tuple[np.ndarray, np.ndarray]], int]:
+    """(config, actor layers [(W, b), ...], step) of the newest checkpoint of a run."""
+    from pianist.agents.policy import read_run_config
+
+    config = TrainConfig.from_dict(read_run_config(run_dir)["config"])
+    checkpoint = latest_checkpoint(run_dir)
+    data = _load_npz(checkpoint / "policy.npz")
+    n = len(data) // 2
+    try:
+        layers = [(data[f"w{i}"], data[f"b{i}"]) for i in range(n)]
+    except KeyError as exc:
+        raise ValueError(f"{checkpoint / 'policy.npz'} is corrupt (missing {exc})") from None
+    return config, layers, int(load_state(checkpoint)["step"])

@@ -1,0 +1,231 @@
+"""Agent and training configuration: frozen dataclasses and the named presets.
+
+The defaults of :class:`SACConfig` are plain SAC as in the original training code; the preset
+``droq-paper`` holds the settings of the paper's runs (facts page, sections 3 and 6). Importing
+this module is cheap (no JAX).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+Hands = Literal["both", "right", "left", "song"]
+
+
+@dataclass(frozen=True)
+class SACConfig:
+    """Soft actor-critic; DroQ and REDQ are settings of it (see :data:`PRESETS`)."""
+
+    hidden_dims: tuple[int, ...] = (256, 256, 256)
+    """Hidden layer sizes of the actor and of each critic."""
+    activation: Literal["gelu", "relu", "tanh"] = "gelu"
+    num_qs: int = 2
+    """Critics in the ensemble."""
+    num_min_qs: int | None = None
+    """REDQ: the target takes the minimum over this many critics drawn at random (None: all)."""
+    critic_dropout: float = 0.0
+    """DroQ: dropout rate in the critics' hidden layers (before layer norm)."""
+    critic_layer_norm: bool = False
+    discount: float = 0.99
+    tau: float = 0.005
+    """Target critic EMA rate per update."""
+    actor_lr: float = 3e-4
+    critic_lr: float = 3e-4
+    temp_lr: float = 3e-4
+    init_temperature: float = 1.0
+    target_entropy_per_dim: float = -0.5
+    """Target entropy = this * |A| (the original: -|A|/2)."""
+    log_std_min: float = -20.0
+    log_std_max: float = 2.0
+    backup_entropy: bool = True
+    """Subtract the next state's entropy bonus in the critic target."""
+    batch_size: int = 256
+
+    def __post_init__(self) -> None:
+        if self.num_qs < 1:
+            raise ValueError(f"num_qs must be >= 1, not {self.num_qs}")
+        if self.num_min_qs is not None and not 1 <= self.num_min_qs <= self.num_qs:
+            raise ValueError(
+                f"num_min_qs must be in 1..num_qs ({self.num_qs}), not {self.num_min_qs}"
+            )
+        if not 0.0 <= self.critic_dropout < 1.0:
+            raise ValueError(f"critic_dropout must be in [0, 1), not {self.critic_dropout}")
+        if not self.hidden_dims or min(self.hidden_dims) < 1:
+            raise ValueError(f"hidden_dims must be positive sizes, not {self.hidden_dims}")
+        if self.batch_size < 1:
+            raise ValueError(f"batch_size must be >= 1, not {self.batch_size}")
+
+
+@dataclass(frozen=True)
+class TaskConfig:
+    """The environment the agent sees: env options plus the observation and action wrappers."""
+
+    lookahead: int = 10
+    hands: Hands = "both"
+    """"song" uses only the hands that the song's notes are fingered for."""
+    physics: Literal["faithful", "fast"] = "faithful"
+    reduced_action_space: bool = True
+    gravity_compensation: bool = True
+    primitive_fingertip_collisions: bool = True
+    forearm_dofs: tuple[str, ...] = ("tx", "ty")
+    """Forearm joints (the paper's: slide along the keyboard and towards it)."""
+    action_reward_observation: bool = True
+    """Previous action and reward in the observation (the paper's runs)."""
+    goal_frames_observed: int | None = None
+    """Goal rows (88 keys + sustain) in the observation, from the current frame on; None: all
+    L + 1 rows as in the paper."""
+    finger_target_frames: int = 0
+    """Compact goal: for frames t..t+n-1 and every finger, whether it is due and the vector from
+    its fingertip to its key's target (m x 10). 0: off."""
+    residual: bool = False
+    """Act as a correction added to the inverse-kinematics planner's action."""
+    residual_scale: float = 0.3
+    """The residual's range: final action = clip(planner + scale * agent action, -1, 1)."""
+
+    def env_options(self, song_hands: tuple[str, ...] = ()) -> dict[str, Any]:
+        """Keyword options of :class:`pianist.env.PianoEnv` (``song_hands``: the song's hands)."""
+        hands = self.hands
+        if hands == "song":
+            hands = song_hands[0] if len(song_hands) == 1 else "both"
+        return {
+            "lookahead": self.lookahead,
+            "hands": hands,
+            "physics": self.physics,
+            "reduced_action_space": self.reduced_action_space,
+            "gravity_compensation": self.gravity_compensation,
+            "primitive_fingertip_collisions": self.primitive_fingertip_collisions,
+            "forearm_dofs": self.forearm_dofs,
+        }
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """One training run: task, agent, and the loop's schedule. Steps are environment steps."""
+
+    preset: str = "custom"
+    task: TaskConfig = field(default_factory=TaskConfig)
+    agent: SACConfig = field(default_factory=SACConfig)
+    seed: int = 0
+    seed_steps: int = 5000
+    """Uniform random actions before the first update."""
+    replay_capacity: int = 1_000_000
+    updates_per_step: int = 1
+    """Update-to-data ratio."""
+    steps_per_iteration: int = 1
+    """Environment steps between blocks of updates; a block is one jitted call (lax.scan) of
+    steps_per_iteration * updates_per_step updates. 1 = the paper's act-update alternation."""
+    pipeline: bool = False
+    """Dispatch a block of updates, then act with the parameters from before it while it runs
+    on the other core (the acting policy lags one block behind)."""
+    eval_interval: int = 10_000
+    """Evaluate one deterministic episode every this many steps (and at the end)."""
+    checkpoint_interval: int = 10_000
+    """Checkpoint at the first episode end after this many steps since the last one."""
+
+    def __post_init__(self) -> None:
+        for name in (
+            "replay_capacity",
+            "updates_per_step",
+            "steps_per_iteration",
+            "eval_interval",
+            "checkpoint_interval",
+        ):
+            if getattr(self, name) < 1:
+                raise ValueError(f"{name} must be >= 1, not {getattr(self, name)}")
+        if self.seed_steps < 0:
+            raise ValueError(f"seed_steps must be >= 0, not {self.seed_steps}")
+
+    def to_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+    @staticmethod
+    def from_dict(data: dict[str, Any]) -> TrainConfig:
+        """Inverse of :meth:`to_dict` (as read back from JSON)."""
+        try:
+            agent = dict(data["agent"])
+            agent["hidden_dims"] = tuple(agent["hidden_dims"])
+            rest = {k: v for k, v in data.items() if k not in ("task", "agent")}
+            task = dict(data["task"])
+            task["forearm_dofs"] = tuple(task.get("forearm_dofs", TaskConfig.forearm_dofs))
+            return TrainConfig(task=TaskConfig(**task), agent=SACConfig(**agent), **rest)
+        except (KeyError, TypeError) as exc:
+            raise ValueError(f"not a training configuration ({exc})") from None
+
+
+DROQ_PAPER = TrainConfig(
+    preset="droq-paper",
+    task=TaskConfig(),
+    agent=SACConfig(
+        hidden_dims=(256, 256, 256),
+        num_qs=2,
+        critic_dropout=0.01,
+        critic_layer_norm=True,
+        discount=0.8,
+    ),
+)
+
+# What learns a piece in the least wall-clock time here (benchmarks/bench_train.py): one hand
+# when the song needs one, the fast physics preset, a compact goal (fingertip-to-target vectors
+# and 2 goal rows instead of 11 x 89 bits), 2 x 256 networks and batches of 128, blocks of 8
+# updates run on the second core while the first one steps the environment.
+FAST = TrainConfig(
+    preset="fast",
+    task=TaskConfig(
+        hands="song",
+        physics="fast",
+        goal_frames_observed=2,
+        finger_target_frames=3,
+    ),
+    agent=dataclasses.replace(DROQ_PAPER.agent, hidden_dims=(256, 256), batch_size=128),
+    seed_steps=2000,
+    steps_per_iteration=8,
+    pipeline=True,
+    eval_interval=5000,
+    checkpoint_interval=20_000,
+)
+
+PRESETS: dict[str, TrainConfig] = {
+    "droq-paper": DROQ_PAPER,
+    # The same math as droq-paper, run in blocks of 10 steps with updates on the second core.
+    "droq-paper-pipelined": dataclasses.replace(
+        DROQ_PAPER, preset="droq-paper-pipelined", steps_per_iteration=10, pipeline=True
+    ),
+    # Plain SAC with the original code's defaults, on the paper's task.
+    "sac": TrainConfig(preset="sac", task=TaskConfig(), agent=SACConfig()),
+    # REDQ (Chen et al. 2021): 10 critics, min over 2 drawn at random, 20 updates per step.
+    "redq": TrainConfig(
+        preset="redq",
+        task=TaskConfig(),
+        agent=SACConfig(num_qs=10, num_min_qs=2, discount=0.8),
+        updates_per_step=20,
+    ),
+    "fast": FAST,
+    # Fast, with 2 x 128 networks: updates cost about half as much.
+    "fast-small": dataclasses.replace(
+        FAST, preset="fast-small", agent=dataclasses.replace(FAST.agent, hidden_dims=(128, 128))
+    ),
+    # Fast, with a higher update-to-data ratio.
+    "fast-utd2": dataclasses.replace(FAST, preset="fast-utd2", updates_per_step=2),
+    # A correction on top of the inverse-kinematics planner, in the environment the planner
+    # plays best in: with the forearm height slide (pianist.control.planner.planner_env_options).
+    "residual": dataclasses.replace(
+        FAST,
+        preset="residual",
+        task=dataclasses.replace(
+            FAST.task, residual=True, residual_scale=0.3, forearm_dofs=("tx", "ty", "tz")
+        ),
+        seed_steps=1000,
+    ),
+}
+
+
+def get_preset(name: str, **overrides: Any) -> TrainConfig:
+    """The preset ``name`` with top-level fields replaced by ``overrides``."""
+    if name not in PRESETS:
+        raise ValueError(f"unknown preset {name!r}; choose from {', '.join(PRESETS)}")
+    try:
+        return dataclasses.replace(PRESETS[name], **overrides)
+    except TypeError as exc:
+        raise ValueError(f"bad override for preset {name!r}: {exc}") from None

@@ -1,0 +1,134 @@
+"""Acting with a trained actor in NumPy (no JAX needed), and the ``policy:DIR`` controller."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from pianist.agents.config import TrainConfig
+from pianist.agents.envs import AgentEnv, Featurizer, make_agent_env, song_hands
+
+_SQRT_2_OVER_PI = np.float32(np.sqrt(2.0 / np.pi))
+
+
+def _gelu(x: np.ndarray) -> np.ndarray:
+    # The tanh approximation, as flax's nn.gelu computes it.
+    return 0.5 * x * (1.0 + np.tanh(_SQRT_2_OVER_PI * (x + np.float32(0.044715) * x**3)))
+
+
+_ACTIVATIONS = {"gelu": _gelu, "relu": lambda x: np.maximum(x, 0), "tanh": np.tanh}
+
+
+class NumpyActor:
+    """The tanh-Gaussian actor's forward pass on float32 NumPy arrays.
+
+    ``weights``: [(W (in, out), b (out,)), ...] for the hidden layers, then the mean and the
+    log-std heads (:func:`pianist.agents.sac.actor_weights`).
+    """
+
+    def __init__(
+        self,
+        weights: list[tuple[np.ndarray, np.ndarray]],
+        activation: str,
+        log_std_min: float,
+        log_std_max: float,
+    ) -> None:
+        if len(weights) < 3:
+            raise ValueError(f"an actor needs at least 3 layers, got {len(weights)}")
+        self.weights = weights
+        self.activation = _ACTIVATIONS[activation]
+        self.log_std_range = (log_std_min, log_std_max)
+        self.obs_dim = weights[0][0].shape[0]
+        self.action_dim = weights[-1][0].shape[1]
+
+    def distribution(self, obs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """obs (D,) or (B, D) -> pre-tanh mean and log std, (A,) or (B, A)."""
+        x = obs
+        for w, b in self.weights[:-2]:
+            x = self.activation(x @ w + b)
+        (wm, bm), (ws, bs) = self.weights[-2:]
+        return x @ wm + bm, np.clip(x @ ws + bs, *self.log_std_range)
+
+    def mean_action(self, obs: np.ndarray) -> np.ndarray:
+        """The deterministic action tanh(mean) used for evaluation."""
+        return np.tanh(self.distribution(obs)[0])
+
+    def sample(self, obs: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """An exploration action tanh(mean + std * N(0, 1)) drawn from ``rng``."""
+        mean, log_std = self.distribution(obs)
+        noise = rng.standard_normal(mean.shape, dtype=np.float32)
+        return np.tanh(mean + np.exp(log_std) * noise)
+
+
+class PolicyController:
+    """A trained policy as a controller: ``reset(env, seed)``, ``act(observation)``.
+
+    The environment must be the one the policy was trained on: build it with
+    :meth:`make_env`. Actions are deterministic (the actor's mean).
+    """
+
+    def __init__(self, run_dir: str | Path) -> None:
+        from pianist.agents.checkpoint import load_policy
+
+        self.run_dir = Path(run_dir)
+        self.config, weights, self.step = load_policy(self.run_dir)
+        a = self.config.agent
+        self.actor = NumpyActor(weights, a.activation, a.log_std_min, a.log_std_max)
+        self._features: Featurizer | None = None
+
+    @classmethod
+    def from_actor(cls, config: TrainConfig, actor: NumpyActor) -> PolicyController:
+        """A controller around an actor held in memory (used for evaluation during training)."""
+        self = cls.__new__(cls)
+        self.run_dir, self.config, self.actor, self.step = None, config, actor, -1
+        self._features = None
+        return self
+
+    def make_env(self, song: Any) -> AgentEnv:
+        """The environment of the training task, for ``song`` (a name, a file, a Song)."""
+        return make_agent_env(song, self.config.task)
+
+    def env_options(self, song: Any) -> dict[str, Any]:
+        """The :class:`pianist.env.PianoEnv` options :meth:`make_env` uses for ``song``."""
+        return self.config.task.env_options(song_hands(song))
+
+    def reset(self, env: gym.Env, seed: int | None = None) -> None:
+        if not isinstance(env, AgentEnv):
+            raise ValueError(
+                "a trained policy needs the environment of its task: "
+                "build it with PolicyController.make_env(song)"
+            )
+        features = Featurizer(env, self.config.task)
+        if features.obs_dim != self.actor.obs_dim or features.action_dim != self.actor.action_dim:
+            raise ValueError(
+                f"the policy reads {self.actor.obs_dim} observation and writes "
+                f"{self.actor.action_dim} action values, this environment has "
+                f"{features.obs_dim} and {features.action_dim}"
+            )
+        features.reset(env, seed)
+        self._features = features
+
+    def act(self, observation: dict[str, np.ndarray]) -> np.ndarray:
+        if self._features is None:
+            raise RuntimeError("call reset(env, seed) first")
+        x = self._features(observation)
+        return self._features.env_action(self.actor.mean_action(x).astype(np.float32))
+
+
+def read_run_config(run_dir: str | Path) -> dict[str, Any]:
+    """``run_dir/config.json`` as a dict (song, steps, config); clear errors when unusable."""
+    path = Path(run_dir) / "config.json"
+    if not Path(run_dir).is_dir():
+        raise FileNotFoundError(f"run directory not found: {run_dir}")
+    if not path.is_file():
+        raise FileNotFoundError(f"{run_dir} is not a training run (no config.json)")
+    try:
+        data = json.loads(path.read_text())
+        TrainConfig.from_dict(data["config"])
+    except (json.JSONDecodeError, KeyError, TypeError) as exc:
+        raise ValueError(f"{path} is not a valid run configuration ({exc})") from None
+    return data
