@@ -281,8 +281,8 @@ def test_train_resume_eval_and_play_a_policy(tmp_path):
     metrics = json.loads((tmp_path / "ev" / "metrics.json").read_text())
     assert metrics["checkpoint_step"] == 160 and metrics["preset"] == "fast-small"
     out = tmp_path / "play"
-    spec = f"policy:{run_dir}"
-    assert main(["play", "c-major-chords", "--controller", spec, "--out", str(out), "--no-audio"]) == 0
+    args = ["play", "c-major-chords", "--controller", f"policy:{run_dir}", "--no-audio"]
+    assert main([*args, "--out", str(out)]) == 0
     assert json.loads((out / "metrics.json").read_text())["steps"] == 81
 
 
