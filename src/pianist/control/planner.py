@@ -36,7 +36,7 @@ FINGER_PREFIXES = ("TH", "FF", "MF", "RF", "LF")
 class PlannerConfig:
     """Tuning of :class:`IKPlanner`; lengths in m, times in s, angles in rad."""
 
-    white_press_depth_m: float = 0.02
+    white_press_depth_m: float = 0.025
     """How far below a white key's top the fingertip is sent: past the key's travel, so the
     position servo keeps pushing it down."""
     black_press_depth_m: float = 0.045
