@@ -146,7 +146,8 @@ class IKPlanner:
             - C.KEY_ACTIVATION_THRESHOLD_RAD
         )
         rng = np.random.default_rng(0)  # the posture samples do not depend on the episode
-        self.hands = [_Hand(m, self.scratch, hand, cfg, rng) for hand in base.scene.hands]
+        self.hands = [_Hand(m, hand) for hand in base.scene.hands]
+        _sample_postures(m, self.scratch, self.hands, cfg, rng)
         for hand in self.hands:
             hand.plan_forearm(goal, self.key_point)
         if len(self.hands) == 2:
@@ -192,7 +193,7 @@ def planner_env_options() -> dict[str, object]:
 class _Hand:
     """One hand: its indices, posture samples, forearm plan and per-finger IK."""
 
-    def __init__(self, m, data, hand, cfg: PlannerConfig, rng: np.random.Generator) -> None:
+    def __init__(self, m, hand) -> None:
         self.side = hand.side
         self.finger_offset = 0 if hand.side == "right" else FINGERS_PER_HAND
         self.sites = np.asarray(hand.fingertip_sites)
@@ -224,32 +225,11 @@ class _Hand:
         self.jacp = np.zeros((3, m.nv))
         self.pressing = np.zeros(FINGERS_PER_HAND, dtype=bool)
         self.free = np.zeros(0, dtype=bool)
-        self._sample_postures(m, data, cfg, rng)
 
     # -------------------------------------------------------------------- postures
 
-    def _sample_postures(self, m, data, cfg: PlannerConfig, rng: np.random.Generator) -> None:
-        """Fingertip positions relative to the forearm for random postures of each finger.
-
-        Fingers do not share joints, so one kinematics pass samples all five at once; the
-        joint positions of every sample are laid out in one array first so that the loop
-        only copies a row and runs ``mj_kinematics``.
-        """
-        mujoco.mj_resetData(m, data)
-        self.lower(data, cfg)
-        self.set_wrist(data, None, cfg)
-        batch = np.tile(data.qpos, (cfg.samples, 1))
-        for finger in self.fingers:
-            finger.samples = rng.uniform(finger.low, finger.high, (cfg.samples, finger.dof))
-            for i, (qpos, share) in enumerate(zip(finger.qpos, finger.share, strict=True)):
-                batch[:, qpos] = finger.samples[:, i : i + 1] * share
-        tips = np.empty((cfg.samples, FINGERS_PER_HAND, 3))
-        for s in range(cfg.samples):
-            data.qpos[:] = batch[s]
-            mujoco.mj_kinematics(m, data)
-            tips[s] = data.site_xpos[self.sites] - data.xpos[self.forearm_body]
-        for f, finger in enumerate(self.fingers):
-            finger.sample_tips = tips[:, f]
+    def choose_lift_posture(self, m, data, cfg: PlannerConfig) -> None:
+        """The lifted posture of each finger and the forearm offsets, from the samples."""
         # The lifted posture: the sample nearest the rest posture's fingertip, lifted clear.
         mujoco.mj_resetData(m, data)
         self.lower(data, cfg)
@@ -492,6 +472,39 @@ class _Finger:
         diff = self.sample_tips - target
         diff[:, 2] *= z_weight
         return int(np.argmin(np.einsum("ij,ij->i", diff, diff)))
+
+
+def _sample_postures(
+    m, data, hands: list[_Hand], cfg: PlannerConfig, rng: np.random.Generator
+) -> None:
+    """Fingertip positions relative to the forearm for random postures of every finger.
+
+    Fingers (and hands) share no joints, so one kinematics pass samples all of them at once;
+    the joint positions of every sample are laid out in one array first so that the loop
+    only copies a row and runs ``mj_kinematics``.
+    """
+    mujoco.mj_resetData(m, data)
+    for hand in hands:
+        hand.lower(data, cfg)
+        hand.set_wrist(data, None, cfg)
+    batch = np.tile(data.qpos, (cfg.samples, 1))
+    for hand in hands:
+        for finger in hand.fingers:
+            finger.samples = rng.uniform(finger.low, finger.high, (cfg.samples, finger.dof))
+            for i, (qpos, share) in enumerate(zip(finger.qpos, finger.share, strict=True)):
+                batch[:, qpos] = finger.samples[:, i : i + 1] * share
+    sites = np.concatenate([hand.sites for hand in hands])
+    origins = np.repeat([hand.forearm_body for hand in hands], FINGERS_PER_HAND)
+    tips = np.empty((cfg.samples, len(sites), 3))
+    for s in range(cfg.samples):
+        data.qpos[:] = batch[s]
+        mujoco.mj_kinematics(m, data)
+        tips[s] = data.site_xpos[sites] - data.xpos[origins]
+    for h, hand in enumerate(hands):
+        for f, finger in enumerate(hand.fingers):
+            finger.sample_tips = tips[:, h * FINGERS_PER_HAND + f]
+    for hand in hands:
+        hand.choose_lift_posture(m, data, cfg)
 
 
 def _actuated_joints(m, actuator: int) -> np.ndarray:
