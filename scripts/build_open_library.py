@@ -62,6 +62,13 @@ class Piece:
     note: str = ""
 
 
+
+CHORALE_NOTE = (
+    "four-part chorale played on the keyboard: soprano in the right hand, bass in the left, "
+    "alto and tenor to either hand as the fingerer finds playable; quarter = 72 (the encoding "
+    "has no tempo)"
+)
+
 PIECES = (
     Piece(
         "bach-prelude-c-major-bwv846",
@@ -169,9 +176,7 @@ PIECES = (
         right_parts=(0,),
         quarter_bpm=72.0,
         free_parts=(1, 2),
-        note="four-part chorale played on the keyboard: soprano in the right hand, bass in "
-        "the left, alto and tenor to either hand as the fingerer finds playable; "
-        "quarter = 72 (the encoding has no tempo)",
+        note=CHORALE_NOTE,
     ),
     Piece(
         "bach-chorale-bwv66-6",
@@ -184,9 +189,7 @@ PIECES = (
         right_parts=(0,),
         quarter_bpm=72.0,
         free_parts=(1, 2),
-        note="four-part chorale played on the keyboard: soprano in the right hand, bass in "
-        "the left, alto and tenor to either hand as the fingerer finds playable; "
-        "quarter = 72 (the encoding has no tempo)",
+        note=CHORALE_NOTE,
     ),
 )
 

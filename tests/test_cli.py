@@ -40,21 +40,7 @@ def test_info_describes_a_song(capsys):
 
 def test_play_writes_metrics_midi_and_actions(tmp_path, capsys):
     out = tmp_path / "run"
-    assert (
-        main(
-            [
-                "play",
-                "c-major-chords",
-                "--controller",
-                "zero",
-                "--out",
-                str(out),
-                "--physics",
-                "fast",
-            ]
-        )
-        == 0
-    )
+    assert _play_zero(out) == 0
     metrics = json.loads((out / "metrics.json").read_text())
     for key in ("precision", "recall", "f1", "sustain_f1", "steps", "seconds"):
         assert key in metrics
@@ -125,21 +111,7 @@ def test_unwritable_output_directory(tmp_path):
 
 def test_failed_run_keeps_previous_results(tmp_path):
     out = tmp_path / "run"
-    assert (
-        main(
-            [
-                "play",
-                "c-major-chords",
-                "--controller",
-                "zero",
-                "--out",
-                str(out),
-                "--physics",
-                "fast",
-            ]
-        )
-        == 0
-    )
+    assert _play_zero(out) == 0
     before = (out / "metrics.json").read_bytes()
     bad = tmp_path / "short.npy"
     np.save(bad, np.zeros((3, 39)))
@@ -160,6 +132,12 @@ def test_failed_run_keeps_previous_results(tmp_path):
     )
     assert (out / "metrics.json").read_bytes() == before
     assert not list(out.glob(".*.tmp"))
+
+
+def _play_zero(out: Path, *extra: str) -> int:
+    """``pianist play c-major-chords`` with the zero controller on the fast preset."""
+    args = ["play", "c-major-chords", "--controller", "zero", "--physics", "fast"]
+    return main([*args, "--out", str(out), *extra])
 
 
 def _write(path: Path, data: bytes) -> str:
