@@ -3,10 +3,12 @@
 Each control step it
 
 1. plans where each forearm should be: for every goal frame, the slide position along the
-   keyboard that puts the assigned fingers over their keys, held until the hand's next note
-   and reached by a quick move (servo dynamics inverted) that ends as the note starts, the
-   hand letting go of its keys for a large move; with the optional
-   height slide (``tz``) the forearm is held low enough for the thumb to reach a key's bottom;
+   keyboard that puts the assigned fingers over their keys (within each finger's reach for a
+   chord), held until the hand's next note and reached by a quick move that ends as the note
+   starts, steered in closed loop through the slide servo's exact dynamics; for a large move
+   the fingers let go of their keys and travel just above the next ones; with the optional
+   height slide (``tz``) the forearm is held low enough for the thumb to reach a key's bottom,
+   pushed down harder when the keys lift it;
 2. gives every fingertip a target: the assigned fingertip pressed below the top of each key
    due at the coming frame (once it is over the key), fingers due soon hovering above their
    keys, the others lifted to a fixed posture clear of the keyboard;
@@ -25,6 +27,7 @@ from dataclasses import dataclass
 import gymnasium as gym
 import mujoco
 import numpy as np
+import scipy.linalg
 
 from pianist.sim import constants as C
 
@@ -62,6 +65,8 @@ class PlannerConfig:
     """Where along a black key (world x) a finger presses it, near its front end."""
     hand_height_m: float = -0.03
     """Height command of the forearm's ``tz`` slide (when the scene has one)."""
+    height_feedback: float = 3.0
+    """Gain of the forearm height command on how far the hand has risen above its height."""
     wrist_pose: tuple[float, float] = (0.0, 0.0)
     """WRJ2 and WRJ1, held constant, when the forearm has its height slide."""
     wrist_pose_without_tz: tuple[float, float] = (0.0, 0.25)
@@ -81,6 +86,9 @@ class PlannerConfig:
     """A pressing finger keeps pressing until it is this many tolerances off its key."""
     forearm_move_s: float = 0.1
     """Duration of the forearm's move to a new hand position, ending a frame before the note."""
+    hover_in_shift: bool = True
+    """During a large forearm move the fingers of the note it is for hover over their keys
+    (instead of taking their lifted posture)."""
     shift_threshold_m: float = 0.015
     """A forearm move larger than this lifts the hand's fingers for its duration."""
     forearm_separation_m: float = 0.17
@@ -89,6 +97,13 @@ class PlannerConfig:
     """How far the thumb presses to the left (right hand; mirrored for the left) of the
     index finger's rest position: the thumb, without its rotation joint, reaches key depth
     only under the side of the palm."""
+    reach_margin: float = 0.3
+    """Part of a finger's sampled reach (across the keys) left unused at each end when a chord
+    forces a finger away from its resting place: a finger at the edge of its reach slips."""
+    reach_depth_m: float = 0.008
+    """How far below a key's top a sampled fingertip must go to count as reaching the key."""
+    reach_x_tolerance_m: float = 0.012
+    """How close (along the key) to the press point a sampled fingertip must be to count."""
     samples: int = 4000
     """Sampled postures per finger for the nearest-posture start of the IK."""
     iterations: int = 3
@@ -166,7 +181,7 @@ class IKPlanner:
         press_frame = min(t + cfg.press_lead_frames, T - 1)
         hover_end = min(T, press_frame + 1 + round(cfg.hover_lead_s / self.dt))
         for hand in self.hands:
-            hand.command_forearm(ctrl, t, self.dt, cfg)
+            hand.command_forearm(ctrl, env.data, t, cfg)
             hand.set_wrist(scratch, ctrl, cfg)
         mujoco.mj_kinematics(m, scratch)
         for hand in self.hands:
@@ -207,6 +222,7 @@ class _Hand:
         tz = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, f"{prefix}A_forearm_tz")
         self.tz_actuator = tz if tz >= 0 else None
         self.tz_qpos = m.jnt_qposadr[m.joint(f"{prefix}forearm_tz").id] if tz >= 0 else None
+        self.tz_range = m.actuator_ctrlrange[tz] if tz >= 0 else None
 
         # Actuated joints of each finger (a joint, or a tendon over two joints) and the wrist.
         self.fingers: list[_Finger] = []
@@ -250,6 +266,35 @@ class _Hand:
             finger.lift = finger.samples[finger.nearest(self.lift_tips[f], 1.0)]
         # Forearm slide that puts finger f over a key at y: key y - tip_offset_y[f].
         self.tip_offset_y = self.lift_tips[:, 1] + origin[1] - data.qpos[self.tx_qpos]
+        self.reach = self._reach(origin, data.qpos[self.tx_qpos], cfg)
+
+    def _reach(self, origin: np.ndarray, slide: float, cfg: PlannerConfig) -> np.ndarray:
+        """(5, 2, 2): per finger, for a white (0) and a black (1) key, the lowest and highest
+        key y minus forearm slide at which the finger can press the key.
+
+        From the sampled postures whose fingertip is at the key's press point (x) and below
+        its top: the range of their y, shrunk by ``reach_margin`` of its width at each end.
+        A finger that never gets there (the thumb on a black key) gets its resting offset.
+        """
+        radius = C.FINGERTIP_CAPSULE_RADIUS_M
+        reach = np.repeat(self.tip_offset_y[:, None, None], 2, axis=1).repeat(2, axis=2)
+        for f, finger in enumerate(self.fingers):
+            tips = finger.sample_tips + origin
+            for black in (0, 1):
+                if black:
+                    x = cfg.black_press_x_m
+                    top = C.WHITE_KEY_HEIGHT_M + C.BLACK_KEY_TOP_ABOVE_WHITE_M
+                else:
+                    x = cfg.thumb_white_press_x_m if f == 0 else cfg.white_press_x_m
+                    top = C.WHITE_KEY_HEIGHT_M
+                ok = (np.abs(tips[:, 0] - x) < cfg.reach_x_tolerance_m) & (
+                    tips[:, 2] < top + radius - cfg.reach_depth_m
+                )
+                if ok.sum() >= 10:
+                    lo, hi = np.percentile(tips[ok, 1] - slide, [1, 99])
+                    shrink = cfg.reach_margin * (hi - lo)
+                    reach[f, black] = lo + shrink, hi - shrink
+        return reach
 
     # -------------------------------------------------------------------- forearm
 
@@ -266,16 +311,28 @@ class _Hand:
                 ctrl[actuator] = angle
 
     def plan_forearm(self, goal, key_point: np.ndarray) -> None:
-        """Forearm slide position wanted at every frame, shape (T,)."""
+        """Forearm slide position wanted at every frame, shape (T,).
+
+        The position that puts each assigned finger at its resting place over its key (the
+        mean over the hand's due keys), moved as little as needed to bring every one of those
+        keys within its finger's reach: a wide chord otherwise leaves the thumb pressing at
+        the edge of its reach, where it slips off the key.
+        """
         T = goal.num_frames
         wanted = np.full(T, np.nan)
         for t in range(T):
             keys = np.flatnonzero(goal.keys[t])
             fingers = goal.fingers[t, keys]
             mine = (fingers >= self.finger_offset) & (fingers < self.finger_offset + 5)
-            if mine.any():
-                local = fingers[mine] - self.finger_offset
-                wanted[t] = np.mean(key_point[keys[mine], 1] - self.tip_offset_y[local])
+            if not mine.any():
+                continue
+            keys, local = keys[mine], fingers[mine] - self.finger_offset
+            y = key_point[keys, 1]
+            reach = self.reach[local, C.BLACK_KEY_MASK[keys].astype(int)]  # (n, 2)
+            low, high = np.max(y - reach[:, 1]), np.min(y - reach[:, 0])
+            centre = np.mean(y - self.tip_offset_y[local])
+            # Out of reach together: halfway between what the two worst-off fingers need.
+            wanted[t] = np.clip(centre, low, high) if low <= high else (low + high) / 2
         # Between notes, hold the next note's position (go there early); after the last, stay.
         self.busy = ~np.isnan(wanted)
         known = np.flatnonzero(self.busy)
@@ -288,12 +345,14 @@ class _Hand:
         self.tx_plan = np.clip(wanted, *self.tx_range)
 
     def plan_commands(self, m, dt: float, cfg: PlannerConfig) -> None:
-        """Slide commands, shape (T,), that make the forearm follow its plan in time.
+        """The forearm's reference path along the keyboard, ``tx_path`` (T + 2, 2): position
+        and velocity wanted at the end of every step.
 
-        The plan's steps become minimum-jerk moves of ``forearm_move_s`` that end as the note
-        starts; the command inverts the slide's servo dynamics along that path,
-        ``u = y + (c / kp) y' + (M / kp) y''``: the critically damped servo alone needs
-        ~0.45 s to cover 90 % of a jump, which makes the hand late for every shift.
+        The plan's steps become minimum-jerk moves of ``forearm_move_s`` that end
+        ``press_lead_frames`` before the note starts; ``command_forearm`` then steers the
+        slide's servo along that path in closed loop. Left alone, the critically damped
+        servo needs ~0.45 s to cover 90 % of a jump, which makes the hand late for every
+        shift (and for the first note, which the hands reach from their home position).
         """
         plan = self.tx_plan
         T = len(plan)
@@ -301,34 +360,35 @@ class _Hand:
         # A pressed finger pins the hand to its key by friction: before a shift too large for
         # the fingers to absorb, the hand lets go of its keys for the move's duration.
         self.free = np.zeros(T, dtype=bool)
+        self.shift_to = np.zeros(T, dtype=int)  # during a move: the frame of the note it is for
         # Moves end ``press_lead_frames`` before the note, so that fingers press a still hand.
         lead = cfg.press_lead_frames
         shifts = np.flatnonzero(np.abs(np.diff(plan)) > cfg.shift_threshold_m) + 1
         for k in shifts:
             self.free[max(0, k - n - lead) : max(0, k - lead)] = True
+            self.shift_to[max(0, k - n - lead) : max(0, k - lead)] = k
         s = (np.arange(n) + 0.5) / n
         weights = s**2 * (1 - s) ** 2  # minimum-jerk velocity profile
         weights /= weights.sum()
-        padded = np.concatenate([plan, np.full(n + 1 + lead, plan[-1])])
-        # y[t]: where the forearm should be at the end of step t.
-        y = np.array([weights @ padded[t + 1 + lead : t + 1 + lead + n] for t in range(T)])
-        ext = np.concatenate([[0.0, 0.0], y, [y[-1]]])  # the slide starts at home (0)
-        # Midpoint of step t: position, velocity and acceleration by finite differences.
-        mid = (ext[2:-1] + ext[1:-2]) / 2
-        vel = (ext[2:-1] - ext[1:-2]) / dt
-        acc = (ext[3:] - ext[2:-1] - ext[1:-2] + ext[:-3]) / (2 * dt**2)
-        kp = m.actuator_gainprm[self.tx_actuator, 0]
-        damping = -m.actuator_biasprm[self.tx_actuator, 2] + m.dof_damping[self.tx_dof]
-        mass = m.body_subtreemass[self.forearm_body]
-        command = mid + (damping / kp) * vel + (mass / kp) * acc
-        self.tx_command = np.clip(command, *m.actuator_ctrlrange[self.tx_actuator])
+        padded = np.concatenate([plan, np.full(n + 3 + lead, plan[-1])])
+        # y[t]: where the forearm should be at the end of step t (two steps past the end too).
+        y = np.array([weights @ padded[t + 1 + lead : t + 1 + lead + n] for t in range(T + 2)])
+        ext = np.concatenate([[y[0]], y, [y[-1]]])
+        self.tx_path = np.stack([y, (ext[2:] - ext[:-2]) / (2 * dt)], axis=1)
+        self.tx_servo = _Servo(m, self.tx_actuator, self.tx_dof, dt)
 
-    def command_forearm(self, ctrl: np.ndarray, t: int, dt: float, cfg: PlannerConfig) -> None:
+    def command_forearm(self, ctrl: np.ndarray, data, t: int, cfg: PlannerConfig) -> None:
         # The fingers are solved for where the forearm is now, not where it is going: they
         # then reach their keys even while the forearm is still on its way.
-        ctrl[self.tx_actuator] = self.tx_command[min(t, len(self.tx_command) - 1)]
+        t = min(t, len(self.tx_path) - 3)
+        state = np.array([data.qpos[self.tx_qpos], data.qvel[self.tx_dof]])
+        ctrl[self.tx_actuator] = self.tx_servo.command(state, self.tx_path[t + 1])
         if self.tz_actuator is not None:
-            ctrl[self.tz_actuator] = cfg.hand_height_m
+            # The keys push the hand up (about a centimetre under a chord): pressing harder the
+            # further it has risen stiffens the slide's servo against them.
+            rise = data.qpos[self.tz_qpos] - cfg.hand_height_m
+            command = cfg.hand_height_m - cfg.height_feedback * rise
+            ctrl[self.tz_actuator] = np.clip(command, *self.tz_range)
 
     # -------------------------------------------------------------------- fingers
 
@@ -349,6 +409,17 @@ class _Hand:
         targets = self.lift_tips + origin
         active = np.zeros(FINGERS_PER_HAND, dtype=bool)
         self.pressing = np.zeros(FINGERS_PER_HAND, dtype=bool)
+        if self.free[now] and cfg.hover_in_shift:
+            # The hand is moving: the fingers of the note it moves for travel with it just
+            # above their keys, the others stay lifted.
+            frame = self.shift_to[now]
+            for key in np.flatnonzero(goal.keys[frame]):
+                finger = goal.fingers[frame, key] - self.finger_offset
+                if 0 <= finger < FINGERS_PER_HAND and not active[finger]:
+                    targets[finger] = self._press_point(planner, key, finger)
+                    targets[finger, 2] = planner.key_top_z[key] + radius + cfg.hover_height_m
+                    active[finger] = True
+            return targets - origin, active
         lead = min(now + cfg.press_lead_frames, goal.num_frames - 1)
         key_down = planner.env.data.qpos[planner.key_qpos] >= planner.key_threshold
         for frame in (now, lead):
@@ -505,6 +576,33 @@ def _sample_postures(
             finger.sample_tips = tips[:, h * FINGERS_PER_HAND + f]
     for hand in hands:
         hand.choose_lift_posture(m, data, cfg)
+
+
+class _Servo:
+    """A position-servo slide as the linear system ``M q'' = kp (u - q) - c q'``, discretised
+    exactly over one control step (the command is held constant through the step)."""
+
+    def __init__(self, m, actuator: int, dof: int, dt: float) -> None:
+        kp = m.actuator_gainprm[actuator, 0]
+        c = -m.actuator_biasprm[actuator, 2] + m.dof_damping[dof]
+        mass = m.dof_M0[dof]
+        # Augmented matrix exponential: the transition (2, 2) and the command's effect (2,).
+        a = np.zeros((3, 3))
+        a[0, 1] = 1.0
+        a[1] = [-kp / mass, -c / mass, kp / mass]
+        e = scipy.linalg.expm(a * dt)
+        phi, gamma = e[:2, :2], e[:2, 2]
+        self.phi2 = phi @ phi
+        # Two steps' commands (u0, u1) -> state after them: phi gamma u0 + gamma u1.
+        self.inverse = np.linalg.inv(np.stack([phi @ gamma, gamma], axis=1))
+        self.low, self.high = m.actuator_ctrlrange[actuator]
+
+    def command(self, state: np.ndarray, target: np.ndarray) -> float:
+        """This step's command, shape (), to reach ``target`` (position m, velocity m/s) at the
+        end of the next step from ``state``: the first of the two commands that get there
+        exactly (re-solved every step from the measured state, so it corrects for contacts)."""
+        u0, _ = self.inverse @ (target - self.phi2 @ state)
+        return float(np.clip(u0, self.low, self.high))
 
 
 def _actuated_joints(m, actuator: int) -> np.ndarray:
