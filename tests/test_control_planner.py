@@ -141,3 +141,22 @@ def test_the_chord_song_is_played_well():
     metrics = _play("c-major-chords")[1].metrics()
     # Measured 0.89-0.90 (faithful 0.895) when written; 0.81 before the height feedback.
     assert metrics["f1"] >= 0.85, metrics
+
+
+def test_a_thumb_that_cannot_line_up_at_hover_height_presses_from_where_it_stands():
+    # With the hand 1 cm right of where the thumb rests over C4, the thumb cannot get over the
+    # key at hover height (it stood there for the whole note before); at key depth it can.
+    song = Song((Note(60, 0.5, 1.5, finger=0), Note(84, 2.0, 2.5, finger=0)), name="thumb")
+    env = PianoEnv(song, physics="fast", **planner_env_options())
+    planner = IKPlanner()
+    observation, _ = env.reset(seed=0)
+    planner.reset(env)
+    hand = planner.hands[0]
+    hand.tx_plan = hand.tx_plan + 0.01
+    hand.plan_commands(env.model, planner.dt, planner.config)
+    key = 60 - 21
+    down = []
+    for _ in range(31):
+        observation, *_ = env.step(planner.act(observation))
+        down.append(env.data.qpos[planner.key_qpos[key]] >= planner.key_threshold[key])
+    assert sum(down[10:31]) >= 10, down

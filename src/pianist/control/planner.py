@@ -82,6 +82,12 @@ class PlannerConfig:
     neighbour by friction."""
     align_along_m: float = 0.02
     """How far behind the press point (x) a finger other than the thumb may be and press."""
+    stuck_frames: int = 2
+    """Steps a finger may hover off its key without moving before it presses from there."""
+    stuck_reach_m: float = 0.013
+    """How far off its key (across) a stuck finger may be and still press from there."""
+    still_m: float = 0.0015
+    """A fingertip that moved less than this in a step stands still."""
     keep_pressing_ratio: float = 1.3
     """A pressing finger keeps pressing until it is this many tolerances off its key."""
     forearm_move_s: float = 0.1
@@ -241,6 +247,8 @@ class _Hand:
         self.jacp = np.zeros((3, m.nv))
         self.pressing = np.zeros(FINGERS_PER_HAND, dtype=bool)
         self.free = np.zeros(0, dtype=bool)
+        self.stuck = np.zeros(FINGERS_PER_HAND, dtype=int)
+        self.last_tips = np.zeros((FINGERS_PER_HAND, 3))
 
     # -------------------------------------------------------------------- postures
 
@@ -422,6 +430,7 @@ class _Hand:
             return targets - origin, active
         lead = min(now + cfg.press_lead_frames, goal.num_frames - 1)
         key_down = planner.env.data.qpos[planner.key_qpos] >= planner.key_threshold
+        hovering = np.zeros(FINGERS_PER_HAND, dtype=bool)
         for frame in (now, lead):
             for key in np.flatnonzero(goal.keys[frame]):
                 finger = goal.fingers[frame, key] - self.finger_offset
@@ -447,12 +456,24 @@ class _Hand:
                 down = real_tips[finger, 2] < top
                 # A pressing finger keeps pressing while it stays roughly on its key; one that
                 # slid off (beside a black key, say) comes up to try again.
-                if miss <= tolerance or (down and miss <= cfg.keep_pressing_ratio * tolerance):
+                # A finger that hovers off its key and no longer moves cannot get closer at
+                # that height (the thumb under the palm, say): it goes down from where it is.
+                stuck = self.stuck[finger] >= cfg.stuck_frames and miss <= cfg.stuck_reach_m
+                if (
+                    miss <= tolerance
+                    or (down and miss <= cfg.keep_pressing_ratio * tolerance)
+                    or stuck
+                ):
                     extra = cfg.thumb_extra_depth_m if finger == 0 else 0.0
                     targets[finger, 2] = top - planner.key_depth[key] - extra
                     self.pressing[finger] = True
                 else:
                     targets[finger, 2] = top + cfg.hover_height_m
+                    hovering[finger] = True
+        # Count the steps each hovering finger has stood still.
+        still = np.linalg.norm(real_tips - self.last_tips, axis=1) < cfg.still_m
+        self.stuck = np.where(hovering & still, self.stuck + 1, 0)
+        self.last_tips = real_tips.copy()
         for t in range(lead + 1, hover_end if not self.free[now] else lead + 1):
             for key in np.flatnonzero(goal.keys[t]):
                 finger = goal.fingers[t, key] - self.finger_offset
