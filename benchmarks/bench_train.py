@@ -9,8 +9,16 @@ Three modes:
 - ``learn``: train one preset on a song for a wall-clock budget (``--minutes``), evaluating
   every ``--eval-interval`` steps; the run directory keeps the log. Run several in the
   background and compare them with ``report``.
-- ``report``: F1 against wall-clock time from run directories (and, for residual runs, the
-  planner's own F1 on the same task), steps/s and updates/s.
+- ``report``: F1 against wall-clock time from run directories (the last evaluation by each
+  mark, and the best one kept by then in ``run/best``), steps/s and updates/s; then the
+  planner (residual runs), the final policy and the best kept policy evaluated again: one
+  deterministic episode each, and the mean F1 over ``--episodes`` episodes with Gaussian
+  action noise of std ``--noise`` (a single episode's F1 is chaotic: see ``_Noisy``).
+
+Residual runs: ``learn`` copies the planner's source into the run (``planner_snapshot.py``)
+and trains on that copy, and writes the planner's F1 on the run's task (``planner.json``);
+``report`` evaluates the run on that copy (the baseline in the same code state) and again on
+the planner as it is now, with the run's residual on top.
 
 JAX is limited to one thread per computation (XLA_FLAGS below): on this shared 2-core machine
 the pipelined presets use one core for the physics and one for the updates.
@@ -19,6 +27,8 @@ Examples::
 
     python benchmarks/bench_train.py speed --presets droq-paper fast --json speed.json
     nohup python benchmarks/bench_train.py learn --preset fast --minutes 30 --out runs/fast &
+    nohup taskset -c 1 python benchmarks/bench_train.py learn --preset residual-anchored \
+        --song c-major-chords --minutes 30 --out runs/anchored-chords &
     python benchmarks/bench_train.py report runs/fast runs/droq-paper --json learn.json
 """
 
@@ -101,6 +111,43 @@ def speed(presets: list[str], song: str, repeats: int) -> list[dict]:
     return rows
 
 
+PLANNER_SNAPSHOT = "planner_snapshot.py"
+
+
+def use_planner(run: str | Path | None) -> None:
+    """Make ``pianist.control.planner`` the copy kept in ``run`` (None: the package's own).
+
+    The planner changes while runs go on; a residual run keeps the planner source it trained
+    on, so its baseline and its policy are evaluated on that planner, in this process.
+    """
+    import importlib
+    import importlib.util
+    import sys
+
+    import pianist.control
+
+    name = "pianist.control.planner"
+    if run is None:
+        sys.modules.pop(name, None)
+        module = importlib.import_module(name)
+    else:
+        spec = importlib.util.spec_from_file_location(name, Path(run) / PLANNER_SNAPSHOT)
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[name] = module
+        spec.loader.exec_module(module)
+    pianist.control.planner = module
+
+
+def snapshot_planner(run: str | Path) -> None:
+    """Copy the planner's current source into ``run`` and use that copy from now on."""
+    import importlib.util
+
+    source = Path(importlib.util.find_spec("pianist.control.planner").origin).read_text()
+    Path(run).mkdir(parents=True, exist_ok=True)
+    (Path(run) / PLANNER_SNAPSHOT).write_text(source)
+    use_planner(run)
+
+
 def learn(
     preset: str,
     song: str,
@@ -119,6 +166,18 @@ def learn(
         task = dataclasses.replace(cfg.task, residual_scale=residual_scale)
         cfg = dataclasses.replace(cfg, task=task, preset=f"{preset}-scale{residual_scale:g}")
     resume = (Path(out) / "checkpoints" / "latest.json").exists()
+    if cfg.task.residual:
+        if resume:
+            use_planner(out)
+        else:
+            snapshot_planner(out)
+    if cfg.task.residual and not resume:
+        # The planner's own F1 on the same task, in the code this process runs (the planner
+        # may change while runs go on): the baseline the residual must beat.
+        Path(out).mkdir(parents=True, exist_ok=True)
+        baseline = {"song": song, "planner_f1": planner_f1({"song": song, "config": cfg.to_dict()})}
+        (Path(out) / "planner.json").write_text(json.dumps(baseline) + "\n")
+        print(f"planner alone: F1 {baseline['planner_f1']:.3f}", flush=True)
     result = train(
         None if resume else song,
         None if resume else cfg,
@@ -132,7 +191,7 @@ def learn(
     print(f"{preset}: {result.step} steps, last eval {result.last_eval}, {result.wall_s:.0f} s")
 
 
-def report(run_dirs: list[str], marks_min: list[float]) -> list[dict]:
+def report(run_dirs: list[str], marks_min: list[float], noise: float, episodes: int) -> list[dict]:
     rows = []
     for run in run_dirs:
         config = json.loads((Path(run) / "config.json").read_text())
@@ -150,27 +209,58 @@ def report(run_dirs: list[str], marks_min: list[float]) -> list[dict]:
             "steps_per_s": last["step"] / last["wall_s"] if last["wall_s"] else 0.0,
             "updates_per_s": last["updates"] / last["wall_s"] if last["wall_s"] else 0.0,
             "best_f1": max((r["f1"] for r in evals), default=float("nan")),
+            "final_f1": evals[-1]["f1"] if evals else float("nan"),
             "curve": [(r["wall_s"], r["step"], r["f1"]) for r in evals],
         }
         for m in marks_min:
-            before = [r["f1"] for r in evals if r["wall_s"] <= m * 60]
+            # Marks the run did not reach (within 5 %) have no value.
+            reached = bool(evals) and evals[-1]["wall_s"] >= 0.95 * m * 60
+            before = [r["f1"] for r in evals if r["wall_s"] <= m * 60] if reached else []
+            # The policy of the last evaluation by then, and the best one kept by then.
+            row[f"f1_at_{m:g}min"] = before[-1] if before else float("nan")
             row[f"best_f1_by_{m:g}min"] = max(before, default=float("nan"))
         if config["config"]["task"]["residual"]:
-            row["planner_f1"] = planner_f1(config)
+            baseline = Path(run) / "planner.json"
+            if baseline.exists():
+                row["planner_f1_at_start"] = json.loads(baseline.read_text())["planner_f1"]
+            snapshot = (Path(run) / PLANNER_SNAPSHOT).exists()
+            use_planner(run if snapshot else None)
+            row["planner_snapshot"] = snapshot
+            row["planner_f1"] = planner_f1(config)  # the run's planner, measured again
+            row.update(evaluate_policies(run, config, noise, episodes, ""))
+            if snapshot:  # and the planner as it is now, with the run's residual on top
+                use_planner(None)
+                row["planner_f1_now"] = planner_f1(config)
+                row.update(evaluate_policies(run, config, noise, episodes, "now_"))
+        elif episodes > 0:
+            row.update(evaluate_policies(run, config, noise, episodes, ""))
         rows.append(row)
-    head = f"{'preset':22s} {'steps':>8s} {'upd':>8s} {'wall s':>7s} {'steps/s':>7s} {'upd/s':>6s}"
-    head += "".join(f" {'F1@' + format(m, 'g') + 'm':>8s}" for m in marks_min) + "  best F1"
+    head = f"{'song':20s} {'preset':18s} {'steps':>6s} {'upd':>6s} {'wall s':>6s} {'steps/s':>7s}"
+    head += f" {'upd/s':>5s}" + "".join(f" {'F1@' + format(m, 'g') + 'm':>7s}" for m in marks_min)
+    head += f" {'final':>6s} {'best':>6s}"
     print(head)
     for row in rows:
         line = (
-            f"{row['preset']:22s} {row['steps']:8d} {row['updates']:8d} {row['wall_s']:7.0f} "
-            f"{row['steps_per_s']:7.1f} {row['updates_per_s']:6.1f}"
+            f"{row['song']:20s} {row['preset']:18s} {row['steps']:6d} {row['updates']:6d} "
+            f"{row['wall_s']:6.0f} {row['steps_per_s']:7.1f} {row['updates_per_s']:5.1f}"
         )
-        line += "".join(f" {row[f'best_f1_by_{m:g}min']:8.3f}" for m in marks_min)
-        line += f"  {row['best_f1']:.3f}"
-        if "planner_f1" in row:
-            line += f"  (planner alone {row['planner_f1']:.3f})"
+        line += "".join(f" {row[f'f1_at_{m:g}min']:7.3f}" for m in marks_min)
+        line += f" {row['final_f1']:6.3f} {row['best_f1']:6.3f}"
         print(line)
+        marks = ", ".join(f"{m:g} min {row[f'best_f1_by_{m:g}min']:.3f}" for m in marks_min)
+        print(f"   best kept by: {marks}")
+        if "planner_f1" in row:
+            start = row.get("planner_f1_at_start", float("nan"))
+            print(f"   planner alone: {start:.3f} at the start, {row['planner_f1']:.3f} again")
+        for prefix, label in (("", "the run's planner"), ("now_", "today's planner")):
+            if f"{prefix}det_final_f1" not in row:
+                continue
+            names = [n for n in ("planner", "final", "best") if f"{prefix}det_{n}_f1" in row]
+            det = ", ".join(f"{n} {row[f'{prefix}det_{n}_f1']:.3f}" for n in names)
+            print(f"   on {label}: F1 {det}")
+            if f"{prefix}noisy_final_f1" in row:
+                noisy = ", ".join(f"{n} {row[f'{prefix}noisy_{n}_f1']:.3f}" for n in names)
+                print(f"      under action noise {noise:g}, mean of {episodes} episodes: {noisy}")
         print(
             "   curve (wall s, step, F1): "
             + ", ".join(f"({w:.0f}, {s}, {f:.2f})" for w, s, f in row["curve"])
@@ -187,6 +277,56 @@ def planner_f1(config: dict) -> float:
     cfg = TrainConfig.from_dict(config["config"])
     env = make_agent_env(config["song"], cfg.task)
     return float(run_episode(env, IKPlanner(), seed=cfg.seed).metrics()["f1"])
+
+
+class _Noisy:
+    """A controller with Gaussian noise (std ``sigma``, action units) added to its actions.
+
+    One deterministic episode's F1 is chaotic: on c-major-chords, planner actions perturbed by
+    noise of std 0.005 score F1 0.77-0.83 against 0.80 unperturbed. The mean F1 over several
+    perturbed episodes is the comparison that a lucky single episode cannot win.
+    """
+
+    def __init__(self, controller, sigma: float) -> None:
+        self.controller, self.sigma = controller, sigma
+
+    def reset(self, env, seed=None) -> None:
+        self.rng = np.random.default_rng([0 if seed is None else seed, 11])
+        self.controller.reset(env, seed)
+
+    def act(self, observation) -> np.ndarray:
+        action = self.controller.act(observation)
+        noise = self.sigma * self.rng.standard_normal(action.shape)
+        return np.clip(action + noise, -1.0, 1.0).astype(np.float32)
+
+
+def evaluate_policies(
+    run: str, config: dict, sigma: float, episodes: int, prefix: str
+) -> dict[str, float]:
+    """F1 of one deterministic episode and mean F1 over ``episodes`` noisy ones (skipped if
+    0) of the planner (residual runs), the run's final policy and its best kept policy
+    (``run/best``), in the run's environment, with whichever planner module is in use."""
+    from pianist.agents import PolicyController
+    from pianist.control.planner import IKPlanner
+    from pianist.eval import run_episode
+
+    final = PolicyController(run)
+    env = final.make_env(config["song"])
+    controllers = {"final": final}
+    if (Path(run) / "best").is_dir():
+        controllers["best"] = PolicyController(Path(run) / "best")
+    if config["config"]["task"]["residual"]:
+        controllers["planner"] = IKPlanner()
+    out: dict = {}
+    for name, controller in controllers.items():
+        seed = final.config.seed
+        out[f"{prefix}det_{name}_f1"] = run_episode(env, controller, seed=seed).metrics()["f1"]
+        if episodes > 0:
+            noisy = _Noisy(controller, sigma)
+            f1 = [run_episode(env, noisy, seed=i).metrics()["f1"] for i in range(episodes)]
+            out[f"{prefix}noisy_{name}_f1"] = float(np.mean(f1))
+            out[f"{prefix}noisy_{name}_f1_all"] = [float(x) for x in f1]
+    return out
 
 
 def main() -> None:
@@ -208,6 +348,8 @@ def main() -> None:
     p = sub.add_parser("report")
     p.add_argument("runs", nargs="+")
     p.add_argument("--marks", type=float, nargs="+", default=[5, 10, 20, 30])
+    p.add_argument("--noise", type=float, default=0.005, help="action noise of the robust F1")
+    p.add_argument("--episodes", type=int, default=10, help="noisy episodes (0: skip)")
     p.add_argument("--json")
     args = parser.parse_args()
     if args.mode == "speed":
@@ -224,7 +366,7 @@ def main() -> None:
         )
         return
     else:
-        rows = report(args.runs, args.marks)
+        rows = report(args.runs, args.marks, args.noise, args.episodes)
     if args.json:
         Path(args.json).write_text(json.dumps(rows, indent=2, default=float) + "\n")
 

@@ -46,6 +46,30 @@ def test_the_other_presets_change_only_what_they_say():
     assert residual.task.residual and 0 < residual.task.residual_scale <= 1
 
 
+def test_the_anchored_residual_starts_as_the_planner_and_stays_near_it():
+    anchored, residual = get_preset("residual-anchored"), get_preset("residual")
+    assert anchored.task == residual.task  # same scene: the planner's, scale 0.3
+    a = anchored.agent
+    assert a.zero_mean_init and a.init_log_std == -2.3 and a.log_std_max == -1.5
+    assert a.target_entropy_per_dim == -1.0 and a.init_temperature == 0.1
+    assert a.actor_lr == 1e-4 and a.critic_lr == 3e-4 and a.residual_penalty == 0.5
+    assert anchored.seed_policy == "actor" and anchored.seed_steps == 1000
+    assert anchored.eval_interval == 2000
+    # Everything else is the fast preset's.
+    fast = get_preset("fast").agent
+    assert (a.hidden_dims, a.batch_size, a.discount, a.critic_dropout) == (
+        fast.hidden_dims,
+        fast.batch_size,
+        fast.discount,
+        fast.critic_dropout,
+    )
+    # The other presets keep the original initialisation and seed steps.
+    for name in ("droq-paper", "fast", "residual"):
+        cfg = get_preset(name)
+        assert not cfg.agent.zero_mean_init and cfg.agent.init_log_std is None
+        assert cfg.agent.residual_penalty == 0 and cfg.seed_policy == "uniform"
+
+
 def test_the_residual_task_is_the_environment_the_planner_asks_for():
     planner = pytest.importorskip("pianist.control.planner")
     wanted = getattr(planner, "planner_env_options", dict)()
@@ -68,6 +92,12 @@ def test_bad_presets_and_fields_are_clear_errors():
         get_preset("fast", no_such_field=1)
     with pytest.raises(ValueError, match="num_min_qs"):
         dataclasses.replace(get_preset("redq").agent, num_min_qs=11)
+    with pytest.raises(ValueError, match="seed_policy"):
+        get_preset("residual-anchored", seed_policy="planner")
+    with pytest.raises(ValueError, match="init_log_std"):
+        dataclasses.replace(get_preset("fast").agent, init_log_std=5.0)
+    with pytest.raises(ValueError, match="residual_penalty"):
+        dataclasses.replace(get_preset("fast").agent, residual_penalty=-1.0)
     with pytest.raises(ValueError, match="not a training configuration"):
         TrainConfig.from_dict({"task": {}})
 

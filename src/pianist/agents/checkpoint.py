@@ -7,6 +7,11 @@ Layout of a run directory::
     checkpoints/latest.json       {"dir": "step_000012345", "step": 12345}
     checkpoints/step_000012345/   agent.npz (every leaf of the agent state), policy.npz (the
                                   actor's layers, readable without JAX), replay.npz, state.json
+    best/                         the policy with the best evaluation F1 so far, as a run
+                                  directory of its own (config.json, checkpoints/ holding only
+                                  policy.npz and state.json with the evaluation): it plays and
+                                  evaluates like any run (``pianist eval RUN/best SONG``) but
+                                  cannot be resumed
 
 A checkpoint directory is written under a temporary name and renamed when complete, then
 ``latest.json`` is replaced atomically: a crash at any point leaves the previous checkpoint
@@ -36,23 +41,29 @@ _LOAD_ERRORS = (ValueError, OSError, EOFError, KeyError, zipfile.BadZipFile)
 def save_checkpoint(
     run_dir: Path,
     step: int,
-    agent_leaves: list[np.ndarray],
+    agent_leaves: list[np.ndarray] | None,
     actor_layers: list[tuple[np.ndarray, np.ndarray]],
-    replay_arrays: dict[str, np.ndarray],
+    replay_arrays: dict[str, np.ndarray] | None,
     state: dict[str, Any],
     keep: int = 2,
 ) -> Path:
-    """Write checkpoint ``step`` atomically, point ``latest.json`` at it, keep ``keep``."""
+    """Write checkpoint ``step`` atomically, point ``latest.json`` at it, keep ``keep``.
+
+    ``agent_leaves`` and ``replay_arrays`` None: a policy-only checkpoint (not resumable).
+    """
     root = run_dir / CHECKPOINTS
     root.mkdir(parents=True, exist_ok=True)
     name = f"step_{step:09d}"
     tmp = Path(tempfile.mkdtemp(dir=root, prefix=f".{name}."))
     try:
-        np.savez(tmp / "agent.npz", **{f"leaf_{i:04d}": a for i, a in enumerate(agent_leaves)})
+        if agent_leaves is not None:
+            leaves = {f"leaf_{i:04d}": a for i, a in enumerate(agent_leaves)}
+            np.savez(tmp / "agent.npz", **leaves)
         layers = {f"w{i}": w for i, (w, _) in enumerate(actor_layers)}
         layers.update({f"b{i}": b for i, (_, b) in enumerate(actor_layers)})
         np.savez(tmp / "policy.npz", **layers)
-        np.savez(tmp / "replay.npz", **replay_arrays)
+        if replay_arrays is not None:
+            np.savez(tmp / "replay.npz", **replay_arrays)
         (tmp / "state.json").write_text(json.dumps({**state, "step": step}, indent=1) + "\n")
         for f in tmp.iterdir():
             os.chmod(f, 0o644)
@@ -71,6 +82,34 @@ def save_checkpoint(
     for stale in root.glob(".step_*"):  # temporary directories of a crashed save
         shutil.rmtree(stale, ignore_errors=True)
     return final
+
+
+BEST = "best"
+
+
+def save_best(
+    run_dir: Path,
+    step: int,
+    actor_layers: list[tuple[np.ndarray, np.ndarray]],
+    evaluation: dict[str, Any],
+) -> Path:
+    """Keep the actor of step ``step`` as ``run_dir/best`` (see the module docstring).
+
+    ``evaluation``: the metrics that made it the best (stored in its state.json).
+    """
+    best = run_dir / BEST
+    best.mkdir(exist_ok=True)
+    config = json.loads((run_dir / "config.json").read_text())
+    write_json_atomic(config, best / "config.json")
+    return save_checkpoint(best, step, None, actor_layers, None, {"eval": evaluation}, keep=1)
+
+
+def best_evaluation(run_dir: str | Path) -> dict[str, Any] | None:
+    """The evaluation stored with ``run_dir/best`` (None if the run has kept no best yet)."""
+    best = Path(run_dir) / BEST
+    if not (best / CHECKPOINTS / LATEST).is_file():
+        return None
+    return {**load_state(latest_checkpoint(best))["eval"]}
 
 
 def latest_checkpoint(run_dir: str | Path) -> Path:

@@ -40,20 +40,38 @@ class MLP(nn.Module):
 
 
 class Actor(nn.Module):
-    """Observation (B, D) -> mean (B, A) and log std (B, A) of the pre-tanh Gaussian."""
+    """Observation (B, D) -> mean (B, A) and log std (B, A) of the pre-tanh Gaussian.
+
+    ``zero_mean_init``: the mean head starts at zero weights, so the first policy's mean action
+    is exactly 0 (for a residual policy: the planner's action). ``init_log_std``: the log-std
+    head starts with zero weights and this bias, a state-independent std exp(init_log_std).
+    """
 
     hidden_dims: Sequence[int]
     action_dim: int
     activation: str = "gelu"
     log_std_min: float = -20.0
     log_std_max: float = 2.0
+    zero_mean_init: bool = False
+    init_log_std: float | None = None
 
     @nn.compact
     def __call__(self, obs: jnp.ndarray) -> tuple[jnp.ndarray, jnp.ndarray]:
         x = MLP(self.hidden_dims, self.activation)(obs)
         init = nn.initializers.xavier_uniform()
-        mean = nn.Dense(self.action_dim, kernel_init=init, name="mean")(x)
-        log_std = nn.Dense(self.action_dim, kernel_init=init, name="log_std")(x)
+        zeros = nn.initializers.zeros
+        mean = nn.Dense(
+            self.action_dim, kernel_init=zeros if self.zero_mean_init else init, name="mean"
+        )(x)
+        if self.init_log_std is None:
+            log_std = nn.Dense(self.action_dim, kernel_init=init, name="log_std")(x)
+        else:
+            log_std = nn.Dense(
+                self.action_dim,
+                kernel_init=zeros,
+                bias_init=nn.initializers.constant(self.init_log_std),
+                name="log_std",
+            )(x)
         return mean, jnp.clip(log_std, self.log_std_min, self.log_std_max)
 
 

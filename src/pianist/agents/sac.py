@@ -64,7 +64,13 @@ class SAC:
         self.obs_dim, self.action_dim, self.config = obs_dim, action_dim, config
         c = config
         self.actor_def = Actor(
-            c.hidden_dims, action_dim, c.activation, c.log_std_min, c.log_std_max
+            c.hidden_dims,
+            action_dim,
+            c.activation,
+            c.log_std_min,
+            c.log_std_max,
+            c.zero_mean_init,
+            c.init_log_std,
         )
         critic = partial(
             CriticEnsemble,
@@ -138,9 +144,10 @@ class SAC:
     def actor_loss(
         self, actor: Any, state: SACState, batch: Batch, key: jax.Array
     ) -> tuple[jax.Array, dict[str, jax.Array]]:
-        """Mean over the batch of temperature * log pi(a|s) - mean_i Q_i(s, a), a ~ pi.
+        """Mean over the batch of temperature * log pi(a|s) - mean_i Q_i(s, a), a ~ pi, plus
+        ``residual_penalty`` * sum_i tanh(mean_i)^2 (the deterministic action's size).
 
-        Returns the loss and terms: log_prob (B,), q (B,) (ensemble mean).
+        Returns the loss and terms: log_prob (B,), q (B,) (ensemble mean), size (B,).
         """
         k_action, k_drop = jax.random.split(key)
         mean, log_std = self.actor_def.apply({"params": actor}, batch.obs)
@@ -148,8 +155,11 @@ class SAC:
         q = self.critic_def.apply(
             {"params": state.critic}, batch.obs, action, True, rngs={"dropout": k_drop}
         ).mean(axis=0)
+        size = jnp.sum(jnp.tanh(mean) ** 2, axis=-1)
         loss = jnp.mean(jnp.exp(state.log_temp) * log_prob - q)
-        return loss, {"log_prob": log_prob, "q": q}
+        if self.config.residual_penalty > 0:
+            loss = loss + self.config.residual_penalty * jnp.mean(size)
+        return loss, {"log_prob": log_prob, "q": q, "size": size}
 
     def temperature_loss(self, log_temp: jax.Array, entropy: jax.Array) -> jax.Array:
         """temperature * (entropy - target entropy), entropy a scalar batch estimate."""
@@ -193,6 +203,7 @@ class SAC:
             "entropy": entropy,
             "temperature": jnp.exp(log_temp),
             "temperature_loss": t_loss,
+            "mean_action_sq": jnp.mean(a_terms["size"]) / self.action_dim,
         }
         return state, metrics
 

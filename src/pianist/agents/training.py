@@ -19,6 +19,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import shutil
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -40,13 +41,15 @@ EVAL_KEYS = ("precision", "recall", "f1", "sustain_f1", "return")
 
 @dataclass
 class TrainResult:
-    """What :func:`train` did: the final step, the last evaluation, where it resumed from."""
+    """What :func:`train` did: the final step, the last evaluation, where it resumed from, and
+    the best evaluation (its policy is kept in ``run_dir/best``)."""
 
     step: int
     last_eval: dict[str, float]
     resumed_from: int | None
     wall_s: float
     run_dir: Path
+    best_eval: dict[str, float] | None = None
 
 
 def _episode_seed(seed: int, episode: int) -> int:
@@ -96,6 +99,7 @@ def train(
         if (out / ckpt.CHECKPOINTS / ckpt.LATEST).exists():
             raise ValueError(f"{out} already holds a run: resume it or choose another directory")
         out.mkdir(parents=True, exist_ok=True)
+        shutil.rmtree(out / ckpt.BEST, ignore_errors=True)  # left by a run that never checkpointed
     env = make_agent_env(song, config.task)
     eval_env = make_agent_env(song, config.task)
     features = Featurizer(env, config.task)
@@ -128,6 +132,7 @@ def train(
         "last_checkpoint": 0,
     }
     last_eval: dict[str, float] = {}
+    best_eval = ckpt.best_evaluation(out) if resume else None
     resumed_from = None
     log_path = out / "log.jsonl"
     if resume:
@@ -164,15 +169,18 @@ def train(
         metrics = run_episode(eval_env, controller, seed=config.seed).metrics()
         row = {k: float(metrics[k]) for k in EVAL_KEYS}
         counters["last_eval"] = counters["step"]
-        write(
-            {
-                "kind": "eval",
-                "step": counters["step"],
-                "updates": counters["updates"],
-                "wall_s": round(counters["wall_s"] + time.perf_counter() - t0, 3),
-                **row,
-            }
-        )
+        entry = {
+            "kind": "eval",
+            "step": counters["step"],
+            "updates": counters["updates"],
+            "wall_s": round(counters["wall_s"] + time.perf_counter() - t0, 3),
+            **row,
+        }
+        nonlocal best_eval
+        if best_eval is None or row["f1"] > best_eval["f1"]:
+            best_eval = entry
+            ckpt.save_best(out, counters["step"], actor.weights, entry)
+        write(entry)
         return row
 
     def save(mid_episode: bool) -> None:
@@ -210,7 +218,7 @@ def train(
                 batches = replay.sample(sample_rng, c.batch_size, k)
                 state, metrics = agent.update_many(state, batches)  # runs while we step
             for _ in range(n):
-                if counters["step"] < config.seed_steps:
+                if counters["step"] < config.seed_steps and config.seed_policy == "uniform":
                     a = explore_rng.uniform(-1.0, 1.0, A).astype(np.float32)
                 else:
                     a = actor.sample(x, explore_rng).astype(np.float32)
@@ -283,7 +291,9 @@ def train(
         if bar is not None:
             bar.close()
         log.close()
-    return TrainResult(counters["step"], last_eval, resumed_from, counters["wall_s"], out)
+    return TrainResult(
+        counters["step"], last_eval, resumed_from, counters["wall_s"], out, best_eval
+    )
 
 
 def _start_episode(env, features: Featurizer, replay: ReplayBuffer, seed: int, episode: int):
