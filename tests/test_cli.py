@@ -255,6 +255,10 @@ def test_train_resume_eval_and_play_a_policy(tmp_path):
     result = run("train", "--resume", str(run_dir), "--steps", "160", "--no-progress")
     assert result.returncode == 0, result.stderr
     assert "resumed" in result.stdout and "step 160" in result.stdout
+    # The best evaluated policy is kept beside the run and plays like one.
+    assert "best evaluation: F1" in result.stdout and (run_dir / "best").is_dir()
+    best = ["eval", str(run_dir / "best"), "c-major-chords", "--out", str(tmp_path / "best")]
+    assert main(best) == 0
     assert main(["eval", str(run_dir), "c-major-chords", "--out", str(tmp_path / "ev")]) == 0
     metrics = json.loads((tmp_path / "ev" / "metrics.json").read_text())
     assert metrics["checkpoint_step"] == 160 and metrics["preset"] == "fast-small"

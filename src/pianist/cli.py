@@ -266,7 +266,8 @@ class Train:
     song: tyro.conf.Positional[str | None] = None
     """A built-in song name, a MIDI file or a PIG file (omit with --resume)."""
     preset: str = "droq-paper"
-    """droq-paper, droq-paper-pipelined, sac, redq, fast, fast-small, fast-utd2, residual."""
+    """droq-paper, droq-paper-pipelined, sac, redq, fast, fast-small, fast-utd2, residual,
+    residual-anchored."""
     steps: int | None = None
     """Total environment steps (default 1M; when resuming, the run's own total)."""
     out: Path = Path("runs/train")
@@ -302,6 +303,12 @@ class Train:
             )
         f1 = result.last_eval.get("f1", float("nan"))
         _out(f"trained to step {result.step}: F1 {f1:.3f} -> {result.run_dir}")
+        if result.best_eval:
+            best = result.best_eval
+            _out(
+                f"best evaluation: F1 {best['f1']:.3f} at step {best['step']} -> "
+                f"{result.run_dir / 'best'}"
+            )
 
 
 @dataclass(frozen=True)
