@@ -24,6 +24,7 @@ import time
 
 import numpy as np
 
+from pianist.control import NoisyController
 from pianist.control.planner import IKPlanner, planner_env_options
 from pianist.env import PianoEnv
 from pianist.eval import run_episode
@@ -47,23 +48,11 @@ class _TimedPlanner(IKPlanner):
         return action
 
 
-class _NoisyPlanner(IKPlanner):
-    """The planner with Gaussian noise of std ``NOISE_STD`` added to its actions."""
-
-    def __init__(self, seed: int) -> None:
-        super().__init__()
-        self.rng = np.random.default_rng(seed)
-
-    def act(self, observation=None) -> np.ndarray:
-        action = super().act(observation)
-        noisy = action + self.rng.normal(0.0, NOISE_STD, action.shape)
-        return np.clip(noisy, -1.0, 1.0).astype(np.float32)
-
-
 def noisy_f1(song: str, physics: str, episodes: int) -> tuple[float, float]:
     """Mean and standard deviation of F1 over ``episodes`` noisy episodes."""
     env = PianoEnv(song, physics=physics, **planner_env_options())
-    f1 = [run_episode(env, _NoisyPlanner(i), seed=0).metrics()["f1"] for i in range(episodes)]
+    noisy = NoisyController(IKPlanner(), NOISE_STD)
+    f1 = [run_episode(env, noisy, seed=i).metrics()["f1"] for i in range(episodes)]
     return float(np.mean(f1)), float(np.std(f1))
 
 

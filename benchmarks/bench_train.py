@@ -13,7 +13,7 @@ Three modes:
   mark, and the best one kept by then in ``run/best``), steps/s and updates/s; then the
   planner (residual runs), the final policy and the best kept policy evaluated again: one
   deterministic episode each, and the mean F1 over ``--episodes`` episodes with Gaussian
-  action noise of std ``--noise`` (a single episode's F1 is chaotic: see ``_Noisy``).
+  action noise of std ``--noise`` (a single episode's F1 is chaotic: see ``NoisyController``).
 
 Residual runs: ``learn`` copies the planner's source into the run (``planner_snapshot.py``)
 and trains on that copy, and writes the planner's F1 on the run's task (``planner.json``);
@@ -49,6 +49,7 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 from pianist.agents import PRESETS, get_preset  # noqa: E402
+from pianist.control import NoisyController  # noqa: E402
 
 
 def speed(presets: list[str], song: str, repeats: int) -> list[dict]:
@@ -279,27 +280,6 @@ def planner_f1(config: dict) -> float:
     return float(run_episode(env, IKPlanner(), seed=cfg.seed).metrics()["f1"])
 
 
-class _Noisy:
-    """A controller with Gaussian noise (std ``sigma``, action units) added to its actions.
-
-    One deterministic episode's F1 is chaotic: on c-major-chords, planner actions perturbed by
-    noise of std 0.005 score F1 0.77-0.83 against 0.80 unperturbed. The mean F1 over several
-    perturbed episodes is the comparison that a lucky single episode cannot win.
-    """
-
-    def __init__(self, controller, sigma: float) -> None:
-        self.controller, self.sigma = controller, sigma
-
-    def reset(self, env, seed=None) -> None:
-        self.rng = np.random.default_rng([0 if seed is None else seed, 11])
-        self.controller.reset(env, seed)
-
-    def act(self, observation) -> np.ndarray:
-        action = self.controller.act(observation)
-        noise = self.sigma * self.rng.standard_normal(action.shape)
-        return np.clip(action + noise, -1.0, 1.0).astype(np.float32)
-
-
 def evaluate_policies(
     run: str, config: dict, sigma: float, episodes: int, prefix: str
 ) -> dict[str, float]:
@@ -322,7 +302,7 @@ def evaluate_policies(
         seed = final.config.seed
         out[f"{prefix}det_{name}_f1"] = run_episode(env, controller, seed=seed).metrics()["f1"]
         if episodes > 0:
-            noisy = _Noisy(controller, sigma)
+            noisy = NoisyController(controller, sigma)
             f1 = [run_episode(env, noisy, seed=i).metrics()["f1"] for i in range(episodes)]
             out[f"{prefix}noisy_{name}_f1"] = float(np.mean(f1))
             out[f"{prefix}noisy_{name}_f1_all"] = [float(x) for x in f1]

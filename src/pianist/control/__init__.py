@@ -2,6 +2,7 @@
 
 from pianist.control.basic import (
     Controller,
+    NoisyController,
     RandomController,
     ReplayController,
     ZeroController,
@@ -10,6 +11,7 @@ from pianist.control.basic import (
 
 __all__ = [
     "Controller",
+    "NoisyController",
     "RandomController",
     "ReplayController",
     "ZeroController",

@@ -41,6 +41,30 @@ class ZeroController:
         return self._action.copy()
 
 
+class NoisyController:
+    """Another controller's actions plus Gaussian noise of std ``sigma`` (action units), clipped
+    to [-1, 1]; the noise generator is seeded from ``reset``'s seed.
+
+    One deterministic episode's F1 is a chaotic function of the actions (contacts): the mean F1
+    over a few episodes with small noise (std 0.005) is the comparison a lucky episode cannot
+    win.
+    """
+
+    def __init__(self, controller: Controller, sigma: float) -> None:
+        if sigma < 0:
+            raise ValueError(f"noise std must be >= 0, not {sigma}")
+        self.controller, self.sigma = controller, sigma
+
+    def reset(self, env: gym.Env, seed: int | None = None) -> None:
+        self._rng = np.random.default_rng([0 if seed is None else seed, 11])
+        self.controller.reset(env, seed)
+
+    def act(self, observation: dict[str, np.ndarray]) -> np.ndarray:
+        action = np.asarray(self.controller.act(observation))
+        noise = self.sigma * self._rng.standard_normal(action.shape)
+        return np.clip(action + noise, -1.0, 1.0).astype(np.float32)
+
+
 class ReplayController:
     """Plays back a (T, A) array of actions, for example a saved ``actions.npy``."""
 
