@@ -72,6 +72,18 @@ class PlannerConfig:
     wrist_pose_without_tz: tuple[float, float] = (0.0, 0.25)
     """The same without it: the wrist flexed, else the fingers cannot reach a key's bottom
     from the home height."""
+    wrist_feedback: tuple[float, float] = (2.0, 0.0)
+    """Gains (WRJ2, WRJ1) of the wrist commands on how far each joint is off its pose. A
+    forearm move swings the hand sideways on its soft wrist servo (kp 10): left alone, WRJ2
+    is still ~0.04 rad off (4 mm at the fingertips) a step after a shift and then drifts a
+    few mm, enough to land a finger beside its key; with the feedback it is back within
+    ~0.01 rad. (Stiffening the flexion WRJ1 the same way leaves the thumb too high to sound
+    its key.)"""
+    skip_out_of_reach: bool = True
+    """A chord struck together that no hand position covers (an octave is beyond the Shadow
+    hand's span) is played without the keys that cannot be reached along with the most
+    others, keeping the outer voice (the bass in the left hand, the top in the right); its
+    fingers stay off. Otherwise the hand goes halfway and usually reaches none of them."""
     press_lead_frames: int = 1
     """Frames ahead of the scored frame whose keys the fingers go for (servo lag)."""
     hover_lead_s: float = 0.25
@@ -93,11 +105,25 @@ class PlannerConfig:
     forearm_lead_s: float = 0.05
     """The fingers aim from where the forearm will be this much later at its current velocity
     (0: from where it is)."""
-    forearm_move_s: float = 0.1
-    """Duration of the forearm's move to a new hand position, ending a frame before the note."""
+    forearm_move_s: float = 0.05
+    """Duration of the forearm's move to a new hand position, ending a frame before the note:
+    one control step (the slide is steered in closed loop, and the wrist held against the
+    swing), so the fingers are off their keys as briefly as possible."""
     hover_in_shift: bool = True
     """During a large forearm move the fingers of the note it is for hover over their keys
     (instead of taking their lifted posture)."""
+    lazy_m: float = 0.02
+    """The hand stays where it is for the next notes if every finger still reaches its key
+    from there and it is at most this far from where those notes would put it (0: always
+    re-centre). Every move costs the held keys frames; scales gain most."""
+    hover_stops_at_shift: bool = True
+    """Fingers hover only over keys due before the hand's next large move: the keys after it
+    are out of reach from here, and a finger (the thumb above all) that strains towards one
+    dips onto the keys on its way."""
+    transfer_height_m: float = 0.003
+    """Clearance above the key top of a finger going straight from one key to the next (a
+    chord change), lower than ``hover_height_m``: the key it leaves rises slowly and holds
+    it by friction, so it lands ~1 step sooner from this low path."""
     shift_threshold_m: float = 0.015
     """A forearm move larger than this lifts the hand's fingers for its duration."""
     forearm_separation_m: float = 0.17
@@ -173,7 +199,7 @@ class IKPlanner:
         self.hands = [_Hand(m, hand) for hand in base.scene.hands]
         _sample_postures(m, self.scratch, self.hands, cfg, rng)
         for hand in self.hands:
-            hand.plan_forearm(goal, self.key_point)
+            hand.plan_forearm(goal, self.key_point, cfg.lazy_m, cfg.skip_out_of_reach)
         if len(self.hands) == 2:
             _keep_forearms_apart(*self.hands, cfg.forearm_separation_m)
         for hand in self.hands:
@@ -255,6 +281,7 @@ class _Hand:
         self.free = np.zeros(0, dtype=bool)
         self.stuck = np.zeros(FINGERS_PER_HAND, dtype=int)
         self.last_tips = np.zeros((FINGERS_PER_HAND, 3))
+        self.last_key = np.full(FINGERS_PER_HAND, -1)  # key each finger pressed last, or -1
 
     # -------------------------------------------------------------------- postures
 
@@ -280,9 +307,12 @@ class _Hand:
             finger.lift = finger.samples[finger.nearest(self.lift_tips[f], 1.0)]
         # Forearm slide that puts finger f over a key at y: key y - tip_offset_y[f].
         self.tip_offset_y = self.lift_tips[:, 1] + origin[1] - data.qpos[self.tx_qpos]
-        self.reach = self._reach(origin, data.qpos[self.tx_qpos], cfg)
+        self.reach = self._reach(origin, data.qpos[self.tx_qpos], cfg.reach_margin, cfg)
+        self.full_reach = self._reach(origin, data.qpos[self.tx_qpos], 0.0, cfg)
 
-    def _reach(self, origin: np.ndarray, slide: float, cfg: PlannerConfig) -> np.ndarray:
+    def _reach(
+        self, origin: np.ndarray, slide: float, margin: float, cfg: PlannerConfig
+    ) -> np.ndarray:
         """(5, 2, 2): per finger, for a white (0) and a black (1) key, the lowest and highest
         key y minus forearm slide at which the finger can press the key.
 
@@ -306,7 +336,7 @@ class _Hand:
                 )
                 if ok.sum() >= 10:
                     lo, hi = np.percentile(tips[ok, 1] - slide, [1, 99])
-                    shrink = cfg.reach_margin * (hi - lo)
+                    shrink = margin * (hi - lo)
                     reach[f, black] = lo + shrink, hi - shrink
         return reach
 
@@ -319,21 +349,36 @@ class _Hand:
 
     def set_wrist(self, data, ctrl: np.ndarray | None, cfg: PlannerConfig) -> None:
         pose = cfg.wrist_pose if self.tz_qpos is not None else cfg.wrist_pose_without_tz
-        for (actuator, qpos), angle in zip(self.wrist, pose, strict=False):
-            data.qpos[qpos] = angle
+        for (actuator, qpos), angle, gain in zip(
+            self.wrist, pose, cfg.wrist_feedback, strict=False
+        ):
+            off = float(np.mean(data.qpos[qpos])) - angle
+            data.qpos[qpos] = angle  # the fingers are solved for the wrist at its pose
             if ctrl is not None:
-                ctrl[actuator] = angle
+                ctrl[actuator] = angle - gain * off  # a stiffer servo against the swing
 
-    def plan_forearm(self, goal, key_point: np.ndarray) -> None:
+    def plan_forearm(
+        self,
+        goal,
+        key_point: np.ndarray,
+        lazy_m: float = 0.0,
+        skip_out_of_reach: bool = False,
+    ) -> None:
         """Forearm slide position wanted at every frame, shape (T,).
 
         The position that puts each assigned finger at its resting place over its key (the
         mean over the hand's due keys), moved as little as needed to bring every one of those
         keys within its finger's reach: a wide chord otherwise leaves the thumb pressing at
-        the edge of its reach, where it slips off the key.
+        the edge of its reach, where it slips off the key. With ``lazy_m`` > 0 the hand
+        rather stays where it was while every finger still reaches from there (and it is at
+        most ``lazy_m`` from that position).
         """
         T = goal.num_frames
         wanted = np.full(T, np.nan)
+        # Keys of this hand it leaves out: a chord wider than the hand (an octave, say).
+        self.skip = np.zeros((T, goal.keys.shape[1]), dtype=bool)
+        onset = _note_onsets(goal.keys)
+        previous = np.nan
         for t in range(T):
             keys = np.flatnonzero(goal.keys[t])
             fingers = goal.fingers[t, keys]
@@ -345,8 +390,32 @@ class _Hand:
             reach = self.reach[local, C.BLACK_KEY_MASK[keys].astype(int)]  # (n, 2)
             low, high = np.max(y - reach[:, 1]), np.min(y - reach[:, 0])
             centre = np.mean(y - self.tip_offset_y[local])
+            full = self.full_reach[local, C.BLACK_KEY_MASK[keys].astype(int)]
+            lo, hi = y - full[:, 1], y - full[:, 0]
+            if skip_out_of_reach and np.max(lo) > np.min(hi) and len(set(onset[t, keys])) == 1:
+                # A chord struck together that no hand position covers: play the most of its
+                # keys that one position reaches, the outer voice (the bass in the left hand,
+                # the top in the right) among them, rather than none from halfway.
+                outer = np.argmax(y) if self.side == "right" else np.argmin(y)
+                best = max(
+                    np.concatenate([lo, hi]),
+                    key=lambda p: (
+                        np.sum((lo <= p + 1e-9) & (p - 1e-9 <= hi)),
+                        lo[outer] <= p <= hi[outer],
+                    ),
+                )
+                kept = (lo <= best + 1e-9) & (best - 1e-9 <= hi)
+                self.skip[t, keys[~kept]] = True
+                keys, local, y, reach = keys[kept], local[kept], y[kept], reach[kept]
+                low, high = np.max(y - reach[:, 1]), np.min(y - reach[:, 0])
+                centre = np.mean(y - self.tip_offset_y[local])
             # Out of reach together: halfway between what the two worst-off fingers need.
             wanted[t] = np.clip(centre, low, high) if low <= high else (low + high) / 2
+            if lazy_m > 0 and low <= high and np.isfinite(previous):
+                # Stay where the fingers still reach: every move costs frames.
+                if max(low, centre - lazy_m) <= previous <= min(high, centre + lazy_m):
+                    wanted[t] = previous
+            previous = wanted[t]
         # Between notes, hold the next note's position (go there early); after the last, stay.
         self.busy = ~np.isnan(wanted)
         known = np.flatnonzero(self.busy)
@@ -423,11 +492,13 @@ class _Hand:
         targets = self.lift_tips + origin
         active = np.zeros(FINGERS_PER_HAND, dtype=bool)
         self.pressing = np.zeros(FINGERS_PER_HAND, dtype=bool)
+        if self.free[now]:
+            self.last_key[:] = -1
         if self.free[now] and cfg.hover_in_shift:
             # The hand is moving: the fingers of the note it moves for travel with it just
             # above their keys, the others stay lifted.
             frame = self.shift_to[now]
-            for key in np.flatnonzero(goal.keys[frame]):
+            for key in np.flatnonzero(goal.keys[frame] & ~self.skip[frame]):
                 finger = goal.fingers[frame, key] - self.finger_offset
                 if 0 <= finger < FINGERS_PER_HAND and not active[finger]:
                     targets[finger] = self._press_point(planner, key, finger)
@@ -437,8 +508,9 @@ class _Hand:
         lead = min(now + cfg.press_lead_frames, goal.num_frames - 1)
         key_down = planner.env.data.qpos[planner.key_qpos] >= planner.key_threshold
         hovering = np.zeros(FINGERS_PER_HAND, dtype=bool)
+        pressed_key = np.full(FINGERS_PER_HAND, -1)
         for frame in (now, lead):
-            for key in np.flatnonzero(goal.keys[frame]):
+            for key in np.flatnonzero(goal.keys[frame] & ~self.skip[frame]):
                 finger = goal.fingers[frame, key] - self.finger_offset
                 if not 0 <= finger < FINGERS_PER_HAND or active[finger]:
                     continue
@@ -473,15 +545,22 @@ class _Hand:
                     extra = cfg.thumb_extra_depth_m if finger == 0 else 0.0
                     targets[finger, 2] = top - planner.key_depth[key] - extra
                     self.pressing[finger] = True
+                    pressed_key[finger] = key
                 else:
-                    targets[finger, 2] = top + cfg.hover_height_m
+                    transfer = self.last_key[finger] >= 0 and self.last_key[finger] != key
+                    height = cfg.transfer_height_m if transfer else cfg.hover_height_m
+                    targets[finger, 2] = top + height
                     hovering[finger] = True
+        # A finger keeps its last key while it presses or hovers on its way to the next one.
+        self.last_key = np.where(self.pressing, pressed_key, np.where(hovering, self.last_key, -1))
         # Count the steps each hovering finger has stood still.
         still = np.linalg.norm(real_tips - self.last_tips, axis=1) < cfg.still_m
         self.stuck = np.where(hovering & still, self.stuck + 1, 0)
         self.last_tips = real_tips.copy()
         for t in range(lead + 1, hover_end if not self.free[now] else lead + 1):
-            for key in np.flatnonzero(goal.keys[t]):
+            if self.free[t] and cfg.hover_stops_at_shift:
+                break  # keys past a shift are out of reach from here
+            for key in np.flatnonzero(goal.keys[t] & ~self.skip[t]):
                 finger = goal.fingers[t, key] - self.finger_offset
                 if 0 <= finger < FINGERS_PER_HAND and not active[finger]:
                     targets[finger] = self._press_point(planner, key, finger)
@@ -653,6 +732,15 @@ def _rest_angles(m, finger: _Finger) -> np.ndarray:
         elif name.endswith("J0"):
             angles[i] = 1.0
     return np.clip(angles, finger.low, finger.high)
+
+
+def _note_onsets(keys: np.ndarray) -> np.ndarray:
+    """(T, 88) int: the first frame of the note covering each due key (-1 where none)."""
+    onset = np.full(keys.shape, -1)
+    for t in range(keys.shape[0]):
+        started = keys[t] & ~(keys[t - 1] if t else np.zeros_like(keys[t]))
+        onset[t] = np.where(started, t, np.where(keys[t], onset[t - 1] if t else -1, -1))
+    return onset
 
 
 def _keep_forearms_apart(a: _Hand, b: _Hand, separation: float) -> None:
