@@ -28,6 +28,7 @@ import gymnasium as gym
 import mujoco
 import numpy as np
 import scipy.linalg
+import scipy.spatial
 
 from pianist.sim import constants as C
 
@@ -304,7 +305,7 @@ class _Hand:
         side = 1.0 if self.side == "right" else -1.0
         self.lift_tips[0, 1] = self.rest_tips[1, 1] - side * cfg.thumb_offset_m
         for f, finger in enumerate(self.fingers):
-            finger.lift = finger.samples[finger.nearest(self.lift_tips[f], 1.0)]
+            finger.lift = finger.samples[finger.nearest(self.lift_tips[f])]
         # Forearm slide that puts finger f over a key at y: key y - tip_offset_y[f].
         self.tip_offset_y = self.lift_tips[:, 1] + origin[1] - data.qpos[self.tx_qpos]
         self.reach = self._reach(origin, data.qpos[self.tx_qpos], cfg.reach_margin, cfg)
@@ -578,7 +579,7 @@ class _Hand:
         """Set each finger's joints in ``scratch``: nearest sampled posture, then DLS."""
         for f, finger in enumerate(self.fingers):
             if active[f]:
-                finger.angles = finger.samples[finger.nearest(targets[f], 1.0)].copy()
+                finger.angles = finger.samples[finger.nearest(targets[f])].copy()
             else:
                 finger.angles = finger.lift.copy()
             finger.set(scratch, finger.angles)
@@ -632,23 +633,30 @@ class _Finger:
         self.low, self.high = m.actuator_ctrlrange[self.actuators].T
         self.names = [m.actuator(a).name for a in actuators]
         self.angles = np.zeros(self.dof)
+        # Flat index arrays (the IK calls these every iteration): joint j of the finger is
+        # driven by actuator owner[j] with a share of its command.
+        owner = np.repeat(np.arange(self.dof), [len(q) for q in self.qpos])
+        self._qpos, self._owner = np.concatenate(self.qpos), owner
+        self._share = self.share[owner]
+        self._dofs = np.concatenate(self.dofs)
+        self._mix = np.zeros((len(owner), self.dof))  # joint velocities -> actuator space
+        self._mix[np.arange(len(owner)), owner] = self._share
 
     def set(self, data, angles: np.ndarray) -> None:
-        for value, qpos, share in zip(angles, self.qpos, self.share, strict=True):
-            data.qpos[qpos] = value * share
+        data.qpos[self._qpos] = angles[self._owner] * self._share
 
     def jacobian(self, jacp: np.ndarray) -> np.ndarray:
         """(3, dof) fingertip Jacobian in actuator space from the full (3, nv) one."""
-        return np.stack(
-            [jacp[:, cols].sum(axis=1) * s for cols, s in zip(self.dofs, self.share, strict=True)],
-            axis=1,
-        )
+        return jacp[:, self._dofs] @ self._mix
 
-    def nearest(self, target: np.ndarray, z_weight: float) -> int:
+    def index_samples(self, samples: np.ndarray, tips: np.ndarray) -> None:
+        """Keep the sampled postures (S, dof) and their fingertips (S, 3), forearm frame."""
+        self.samples, self.sample_tips = samples, tips
+        self._tree = scipy.spatial.cKDTree(tips)
+
+    def nearest(self, target: np.ndarray) -> int:
         """Index of the sampled posture whose fingertip is closest to ``target`` (forearm frame)."""
-        diff = self.sample_tips - target
-        diff[:, 2] *= z_weight
-        return int(np.argmin(np.einsum("ij,ij->i", diff, diff)))
+        return int(self._tree.query(target)[1])
 
 
 def _sample_postures(
@@ -679,7 +687,7 @@ def _sample_postures(
         tips[s] = data.site_xpos[sites] - data.xpos[origins]
     for h, hand in enumerate(hands):
         for f, finger in enumerate(hand.fingers):
-            finger.sample_tips = tips[:, h * FINGERS_PER_HAND + f]
+            finger.index_samples(finger.samples, tips[:, h * FINGERS_PER_HAND + f])
     for hand in hands:
         hand.choose_lift_posture(m, data, cfg)
 
