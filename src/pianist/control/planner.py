@@ -372,7 +372,8 @@ class _Hand:
         keys within its finger's reach: a wide chord otherwise leaves the thumb pressing at
         the edge of its reach, where it slips off the key. With ``lazy_m`` > 0 the hand
         rather stays where it was while every finger still reaches from there (and it is at
-        most ``lazy_m`` from that position).
+        most ``lazy_m`` from that position). With ``skip_out_of_reach``, the keys of a chord
+        no position covers are left out, as ``skip`` (T, 88) records (see ``PlannerConfig``).
         """
         T = goal.num_frames
         wanted = np.full(T, np.nan)
@@ -392,20 +393,20 @@ class _Hand:
             low, high = np.max(y - reach[:, 1]), np.min(y - reach[:, 0])
             centre = np.mean(y - self.tip_offset_y[local])
             full = self.full_reach[local, C.BLACK_KEY_MASK[keys].astype(int)]
-            lo, hi = y - full[:, 1], y - full[:, 0]
-            if skip_out_of_reach and np.max(lo) > np.min(hi) and len(set(onset[t, keys])) == 1:
+            first, last = y - full[:, 1], y - full[:, 0]  # slide range each key allows
+            if skip_out_of_reach and np.max(first) > np.min(last) and len(set(onset[t, keys])) == 1:
                 # A chord struck together that no hand position covers: play the most of its
                 # keys that one position reaches, the outer voice (the bass in the left hand,
                 # the top in the right) among them, rather than none from halfway.
                 outer = np.argmax(y) if self.side == "right" else np.argmin(y)
                 best = max(
-                    np.concatenate([lo, hi]),
+                    np.concatenate([first, last]),
                     key=lambda p: (
-                        np.sum((lo <= p + 1e-9) & (p - 1e-9 <= hi)),
-                        lo[outer] <= p <= hi[outer],
+                        np.sum((first <= p + 1e-9) & (p - 1e-9 <= last)),
+                        first[outer] <= p <= last[outer],
                     ),
                 )
-                kept = (lo <= best + 1e-9) & (best - 1e-9 <= hi)
+                kept = (first <= best + 1e-9) & (best - 1e-9 <= last)
                 self.skip[t, keys[~kept]] = True
                 keys, local, y, reach = keys[kept], local[kept], y[kept], reach[kept]
                 low, high = np.max(y - reach[:, 1]), np.min(y - reach[:, 0])
