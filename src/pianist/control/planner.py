@@ -499,13 +499,7 @@ class _Hand:
         if self.free[now] and cfg.hover_in_shift:
             # The hand is moving: the fingers of the note it moves for travel with it just
             # above their keys, the others stay lifted.
-            frame = self.shift_to[now]
-            for key in np.flatnonzero(goal.keys[frame] & ~self.skip[frame]):
-                finger = goal.fingers[frame, key] - self.finger_offset
-                if 0 <= finger < FINGERS_PER_HAND and not active[finger]:
-                    targets[finger] = self._press_point(planner, key, finger)
-                    targets[finger, 2] = planner.key_top_z[key] + radius + cfg.hover_height_m
-                    active[finger] = True
+            self._hover_over(planner, self.shift_to[now], targets, active)
             return targets - origin, active
         lead = min(now + cfg.press_lead_frames, goal.num_frames - 1)
         key_down = planner.env.data.qpos[planner.key_qpos] >= planner.key_threshold
@@ -562,13 +556,22 @@ class _Hand:
         for t in range(lead + 1, hover_end if not self.free[now] else lead + 1):
             if self.free[t] and cfg.hover_stops_at_shift:
                 break  # keys past a shift are out of reach from here
-            for key in np.flatnonzero(goal.keys[t] & ~self.skip[t]):
-                finger = goal.fingers[t, key] - self.finger_offset
-                if 0 <= finger < FINGERS_PER_HAND and not active[finger]:
-                    targets[finger] = self._press_point(planner, key, finger)
-                    targets[finger, 2] = planner.key_top_z[key] + radius + cfg.hover_height_m
-                    active[finger] = True
+            self._hover_over(planner, t, targets, active)
         return targets - origin, active
+
+    def _hover_over(
+        self, planner: IKPlanner, frame: int, targets: np.ndarray, active: np.ndarray
+    ) -> None:
+        """Send each finger without a target yet to hover over its key due at ``frame``
+        (world frame, in place)."""
+        goal = planner.goal
+        height = C.FINGERTIP_CAPSULE_RADIUS_M + planner.config.hover_height_m
+        for key in np.flatnonzero(goal.keys[frame] & ~self.skip[frame]):
+            finger = goal.fingers[frame, key] - self.finger_offset
+            if 0 <= finger < FINGERS_PER_HAND and not active[finger]:
+                targets[finger] = self._press_point(planner, key, finger)
+                targets[finger, 2] = planner.key_top_z[key] + height
+                active[finger] = True
 
     def _press_point(self, planner: IKPlanner, key: int, finger: int) -> np.ndarray:
         point = planner.key_point[key].copy()
