@@ -91,10 +91,15 @@ class PlannerConfig:
     """How long before its note a finger comes to hover over its key."""
     align_tolerance_m: float = 0.009
     """How close (across the keys) to a white key's press point a finger must be before it
-    presses, half that for a black key: a finger that lands beside its key sticks to the
-    neighbour by friction."""
+    presses: a finger that lands beside its key sticks to the neighbour by friction."""
+    black_align_tolerance_m: float = 0.008
+    """The same for a black key. (Half the white one, 4.5 mm, held a finger back for a frame
+    while the hand was still settling from a move: every black key of the D major scale
+    sounded a frame late.)"""
     align_along_m: float = 0.02
-    """How far behind the press point (x) a finger other than the thumb may be and press."""
+    """How far behind the press point (x) a finger other than the thumb may be and press a
+    white key (further back it would land on a black key). Along a black key there is no
+    such limit: a finger that slid back on it still presses it."""
     stuck_frames: int = 2
     """Steps a finger may hover off its key without moving before it presses from there."""
     stuck_reach_m: float = 0.013
@@ -521,11 +526,12 @@ class _Hand:
                     # The hand is moving: its fingers stay clear, or they catch on keys.
                     targets[finger] = self.lift_tips[finger] + origin
                     continue
-                tolerance = cfg.align_tolerance_m * (0.5 if C.BLACK_KEY_MASK[key] else 1.0)
+                black = C.BLACK_KEY_MASK[key]
+                tolerance = cfg.black_align_tolerance_m if black else cfg.align_tolerance_m
                 # Across the keys is what matters; along a key a few mm either way still press,
                 # but a finger too far back over a white key would land on a black one.
                 miss = abs(real_tips[finger, 1] - point[1])
-                if finger and real_tips[finger, 0] < point[0] - cfg.align_along_m:
+                if finger and not black and real_tips[finger, 0] < point[0] - cfg.align_along_m:
                     miss = np.inf
                 down = real_tips[finger, 2] < top
                 # A pressing finger keeps pressing while it stays roughly on its key; one that
