@@ -211,7 +211,7 @@ def test_the_hand_stays_put_while_the_fingers_reach():
 
 
 def test_no_finger_strains_for_a_key_beyond_the_next_shift():
-    # C major scale: the thumb plays F4 at frame 30, after the hand's shift at frame 28. At
+    # C major scale: the thumb plays F4 at frame 30, after the hand's shift at frame 29. At
     # frame 25 it is within the hover lead of F4 but must not reach for it from here: the
     # thumb cannot, and on its way it dipped onto D4.
     hovering = {}
@@ -223,7 +223,7 @@ def test_no_finger_strains_for_a_key_beyond_the_next_shift():
         for _ in range(25):
             observation, *_ = env.step(planner.act(observation))
         hand = planner.hands[0]
-        assert hand.free[28] and not hand.free[25:28].any()
+        assert hand.free[29] and not hand.free[25:29].any()
         assert env.goal.fingers[30, 65 - 21] == 0  # F4, thumb
         _, active = hand.fingertip_targets(planner, 25, 32)
         hovering[stop] = bool(active[0])
@@ -289,3 +289,20 @@ def test_every_black_key_of_the_d_major_scale_sounds_on_time():
     silent = int(np.count_nonzero(due[:, BLACK_KEY_MASK] & ~down[:, BLACK_KEY_MASK]))
     assert silent <= 5, silent
     assert episode.metrics()["f1"] >= 0.93, episode.metrics()
+
+
+def test_a_shift_holds_the_keys_before_it_as_long_as_it_can():
+    # D major scale: the middle finger holds F#4 through frame 30, where the thumb takes G4 and
+    # the hand shifts 6 cm (in two moves: halfway at the frame both are due, then over G4).
+    # The hand lets go for the moves only in the steps just before G4 (29, 30); F#4 still
+    # sounds at frame 28. Moving a frame earlier, it fell silent at 28 too.
+    env = PianoEnv("d-major-scale-right", physics="fast", **planner_env_options())
+    held = {}
+    for lead in (0, 1):
+        planner = IKPlanner(PlannerConfig(shift_lead_frames=lead))
+        down = np.asarray(run_episode(env, planner, seed=0).active_keys)
+        assert list(np.flatnonzero(planner.hands[0].free[:60])) == [29 - lead, 30 - lead]
+        held[lead] = bool(down[28, 66 - 21])
+    assert held == {0: True, 1: False}
+    with pytest.raises(ValueError, match="shift_lead_frames"):
+        IKPlanner(PlannerConfig(shift_lead_frames=2)).reset(env)

@@ -115,6 +115,12 @@ class PlannerConfig:
     """Duration of the forearm's move to a new hand position, ending a frame before the note:
     one control step (the slide is steered in closed loop, and the wrist held against the
     swing), so the fingers are off their keys as briefly as possible."""
+    shift_lead_frames: int = 0
+    """Frames before its note a shift (a move the fingers let go for, see
+    ``shift_threshold_m``) ends, at most ``press_lead_frames``: 0, the hand arrives as the
+    note's frame begins and its fingers press from the hover they travelled in. The keys
+    before the shift are then held a frame longer (with 1, the D major scale's F#4 fell
+    silent for two frames before the thumb passed under, now for one)."""
     hover_in_shift: bool = True
     """During a large forearm move the fingers of the note it is for hover over their keys
     (instead of taking their lifted posture)."""
@@ -439,7 +445,8 @@ class _Hand:
         and velocity wanted at the end of every step.
 
         The plan's steps become minimum-jerk moves of ``forearm_move_s`` that end
-        ``press_lead_frames`` before the note starts; ``command_forearm`` then steers the
+        ``press_lead_frames`` before the note starts (``shift_lead_frames`` for a shift the
+        fingers let go for); ``command_forearm`` then steers the
         slide's servo along that path in closed loop. Left alone, the critically damped
         servo needs ~0.45 s to cover 90 % of a jump, which makes the hand late for every
         shift (and for the first note, which the hands reach from their home position).
@@ -451,12 +458,24 @@ class _Hand:
         # the fingers to absorb, the hand lets go of its keys for the move's duration.
         self.free = np.zeros(T, dtype=bool)
         self.shift_to = np.zeros(T, dtype=int)  # during a move: the frame of the note it is for
-        # Moves end ``press_lead_frames`` before the note, so that fingers press a still hand.
+        # Moves end ``press_lead_frames`` before the note, so that fingers press a still hand;
+        # shifts ``shift_lead_frames`` before it, so that the keys before them are held longer.
         lead = cfg.press_lead_frames
+        if not 0 <= cfg.shift_lead_frames <= lead:
+            raise ValueError("shift_lead_frames must be between 0 and press_lead_frames")
         shifts = np.flatnonzero(np.abs(np.diff(plan)) > cfg.shift_threshold_m) + 1
+        delay = lead - cfg.shift_lead_frames
         for k in shifts:
-            self.free[max(0, k - n - lead) : max(0, k - lead)] = True
-            self.shift_to[max(0, k - n - lead) : max(0, k - lead)] = k
+            window = slice(max(0, k - n - lead + delay), max(0, k - lead + delay))
+            self.free[window] = True
+            self.shift_to[window] = k
+        if delay:
+            # The path below ends every move ``lead`` frames early: hold the old position
+            # ``delay`` frames longer before each shift (later shifts first, so that a shift
+            # that follows another keeps its own start).
+            plan = plan.copy()
+            for k in shifts[::-1]:
+                plan[k : min(T, k + delay)] = self.tx_plan[k - 1]
         s = (np.arange(n) + 0.5) / n
         weights = s**2 * (1 - s) ** 2  # minimum-jerk velocity profile
         weights /= weights.sum()
