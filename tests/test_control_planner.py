@@ -43,12 +43,14 @@ def test_a_repeated_key_is_struck_again():
     assert len(strikes) == 4, strikes
 
 
-def test_twinkle_is_played_well_on_both_presets():
-    scores = {physics: _play("twinkle-twinkle", physics)[1].metrics() for physics in ("fast",)}
-    # Regression floor below the level measured (fast 0.967, faithful 0.967); the project's
-    # target is 0.95.
-    assert scores["fast"]["f1"] >= 0.93, scores
-    assert scores["fast"]["precision"] >= 0.95, scores
+@pytest.mark.parametrize("song", ["twinkle-twinkle", "c-major-scale-both"])
+def test_the_planner_reaches_the_target_on_debug_songs(song):
+    # The project's target is F1 >= 0.95 on every debug song. These two meet it with a margin
+    # (measured 0.967 and 0.966 on this preset, 0.967 and 0.967 faithful); the others are
+    # held to regression floors in the tests below and measured in benchmarks/.
+    metrics = _play(song)[1].metrics()
+    assert metrics["f1"] >= 0.95, metrics
+    assert metrics["precision"] >= 0.95, metrics
 
 
 def test_same_song_same_actions():
