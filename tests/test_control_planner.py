@@ -295,9 +295,9 @@ def test_every_black_key_of_the_d_major_scale_sounds_on_time():
 
 def test_a_shift_holds_the_keys_before_it_as_long_as_it_can():
     # D major scale: the middle finger holds F#4 through frame 30, where the thumb takes G4 and
-    # the hand shifts 6 cm (in two moves: halfway at the frame both are due, then over G4).
-    # The hand lets go for the moves only in the steps just before G4 (29, 30); F#4 still
-    # sounds at frame 28. Moving a frame earlier, it fell silent at 28 too.
+    # the hand shifts 6 cm in two moves (halfway for frame 30, where both are due, then over
+    # G4 for frame 31). The fingers let go for them in steps 29 and 30, one step before each
+    # frame; F#4 still sounds at frame 28. Moving a frame earlier, it fell silent at 28 too.
     env = PianoEnv("d-major-scale-right", physics="fast", **planner_env_options())
     held = {}
     for lead in (0, 1):
