@@ -112,9 +112,10 @@ class PlannerConfig:
     """The fingers aim from where the forearm will be this much later at its current velocity
     (0: from where it is)."""
     forearm_move_s: float = 0.05
-    """Duration of the forearm's move to a new hand position, ending a frame before the note:
-    one control step (the slide is steered in closed loop, and the wrist held against the
-    swing), so the fingers are off their keys as briefly as possible."""
+    """Duration of the forearm's move to a new hand position, ending ``press_lead_frames``
+    before the note (a shift: ``shift_lead_frames``): one control step (the slide is steered
+    in closed loop, and the wrist held against the swing), so the fingers are off their keys
+    as briefly as possible."""
     shift_lead_frames: int = 0
     """Frames before its note a shift (a move the fingers let go for, see
     ``shift_threshold_m``) ends, at most ``press_lead_frames``: 0, the hand arrives as the
