@@ -153,3 +153,22 @@ def test_goal_frames_validation(keys, sustain, fingers, dt) -> None:
 def test_bad_dt() -> None:
     with pytest.raises(ValueError):
         goal_frames(Song(()), dt=0)
+
+
+def test_a_lead_in_prepends_silent_frames() -> None:
+    song = Song((Note(60, 0.0, 0.1, finger=0),), sustain=((0.0, 0.1),))
+    goal = goal_frames(song)
+    led = goal.with_lead_in(10)
+    assert led.num_frames == goal.num_frames + 10
+    assert not led.keys[:10].any() and not led.sustain[:10].any()
+    assert (led.fingers[:10] == -1).all() and not led.finger_mask[:10].any()
+    np.testing.assert_array_equal(led.keys[10:], goal.keys)
+    np.testing.assert_array_equal(led.fingers[10:], goal.fingers)
+    np.testing.assert_array_equal(led.sustain[10:], goal.sustain)
+    assert goal.with_lead_in(0) is goal
+
+
+@pytest.mark.parametrize("frames", [-1, 1.5, True, "3"])
+def test_a_lead_in_needs_a_whole_number_of_frames(frames) -> None:
+    with pytest.raises(ValueError, match="whole number of frames"):
+        goal_frames(Song((Note(60, 0.0, 0.1),))).with_lead_in(frames)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from pianist.music import Note, OutOfRangeError, Song
-from pianist.music.transforms import stretch, transpose, trim_silence, window
+from pianist.music.transforms import delay, stretch, transpose, trim_silence, window
 
 
 def _song() -> Song:
@@ -82,3 +82,18 @@ def test_window() -> None:
     for start, end in ((1.0, 1.0), (2.0, 1.0), (-1.0, 1.0), (0.0, float("nan"))):
         with pytest.raises(ValueError):
             window(_song(), start, end)
+
+
+def test_delay_moves_every_note_and_pedal_later() -> None:
+    song = Song((Note(60, 0.0, 0.5, finger=0), Note(64, 0.25, 1.0)), sustain=((0.0, 1.0),))
+    later = delay(song, 0.5)
+    assert [(n.pitch, n.onset_s, n.offset_s, n.finger) for n in later.notes] == [
+        (60, 0.5, 1.0, 0),
+        (64, 0.75, 1.5, None),
+    ]
+    assert later.sustain == ((0.5, 1.5),)
+    assert later.duration_s == pytest.approx(song.duration_s + 0.5)
+    assert delay(song, 0.0) is song
+    for bad in (-0.1, float("inf"), float("nan")):
+        with pytest.raises(ValueError, match="delay"):
+            delay(song, bad)

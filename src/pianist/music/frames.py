@@ -125,6 +125,24 @@ class GoalFrames:
             out[: stop - t, NUM_KEYS] = self.sustain[t:stop]
         return out
 
+    def with_lead_in(self, frames: int) -> GoalFrames:
+        """These goals after ``frames`` empty frames (nothing due, pedal up).
+
+        RoboPianist's ``initial_buffer_time``: silence before the first note, so that a player
+        can take its place first (the debug songs start with a note due in the first step).
+        Returns T + ``frames`` frames; ``frames`` = 0 returns ``self``.
+        """
+        if isinstance(frames, bool) or not isinstance(frames, int | np.integer) or frames < 0:
+            raise ValueError(f"a lead-in needs a whole number of frames >= 0, got {frames!r}")
+        if frames == 0:
+            return self
+        return GoalFrames(
+            keys=np.concatenate([np.zeros((frames, NUM_KEYS), dtype=bool), self.keys]),
+            sustain=np.concatenate([np.zeros(frames, dtype=bool), self.sustain]),
+            fingers=np.concatenate([np.full((frames, NUM_KEYS), -1, np.int8), self.fingers]),
+            dt=self.dt,
+        )
+
 
 def _first_frame(seconds: float, fps: float) -> int:
     return math.floor(round(seconds * fps, _ROUND_DIGITS))

@@ -27,6 +27,20 @@ def stretch(song: Song, factor: float) -> Song:
     return dataclasses.replace(song, notes=notes, sustain=sustain)
 
 
+def delay(song: Song, seconds: float) -> Song:
+    """Add ``seconds`` (>= 0) of silence before the song: every time moves later by it."""
+    if not (math.isfinite(seconds) and seconds >= 0):
+        raise ValueError(f"delay must be a finite number of seconds >= 0, got {seconds!r}")
+    if seconds == 0:
+        return song
+    notes = tuple(
+        dataclasses.replace(n, onset_s=n.onset_s + seconds, offset_s=n.offset_s + seconds)
+        for n in song.notes
+    )
+    sustain = tuple((s + seconds, e + seconds) for s, e in song.sustain)
+    return dataclasses.replace(song, notes=notes, sustain=sustain)
+
+
 def transpose(song: Song, semitones: int, out_of_range: Literal["error", "drop"] = "error") -> Song:
     """Shift every pitch by ``semitones`` (12 = one octave up).
 
