@@ -78,3 +78,42 @@ def test_make_controller_specs():
         make_controller("planner9000")
     with pytest.raises(FileNotFoundError):
         make_controller("replay:/nonexistent/actions.npy")
+
+
+def test_after_a_lead_in_the_song_steps_are_also_scored_alone():
+    # Two silent lead-in steps with a wrong press in the first, then two song steps: one
+    # played right, one missed.
+    episode = _episode([])
+    episode.lead_in_steps = 2
+    episode.active_keys[0, 5] = True
+    episode.goal_keys[2:, 39] = True
+    episode.active_keys[2, 39] = True
+    metrics = episode.metrics()
+    assert metrics["f1"] == pytest.approx((0 + 1 + 1 + 0) / 4)
+    assert metrics["song_f1"] == pytest.approx((1 + 0) / 2)
+    assert metrics["song_precision"] == 1.0 and metrics["song_recall"] == 0.5
+    assert metrics["lead_in_steps"] == 2
+    episode.lead_in_steps = 0
+    assert "song_f1" not in episode.metrics()
+
+
+def test_an_environment_with_a_lead_in_starts_the_song_later():
+    plain = PianoEnv(TINY, physics="fast")
+    env = PianoEnv(TINY, physics="fast", initial_buffer_s=0.26)  # rounds to 5 steps
+    assert env.config.lead_in_steps == 5
+    assert env.goal.num_frames == plain.goal.num_frames + 5
+    assert not env.goal.keys[:5].any()
+    np.testing.assert_array_equal(env.goal.keys[5:], plain.goal.keys)
+    episode = run_episode(env, ZeroController(), seed=0)
+    assert episode.num_steps == env.goal.num_frames and episode.lead_in_steps == 5
+    # Nothing is pressed: only the steps with nothing due score (F1 1), the lead-in's among them.
+    silent = ~env.goal.keys.any(axis=1)
+    metrics = episode.metrics()
+    assert metrics["song_f1"] == pytest.approx(silent[5:].mean()) and metrics["song_f1"] < 0.5
+    assert metrics["f1"] == pytest.approx(silent.mean())
+
+
+@pytest.mark.parametrize("bad", [-0.5, float("nan"), float("inf"), True])
+def test_a_bad_lead_in_is_refused(bad):
+    with pytest.raises(ValueError, match="initial_buffer_s"):
+        PianoEnv(TINY, physics="fast", initial_buffer_s=bad)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 from pianist.sim import constants as C
@@ -41,6 +42,12 @@ class EnvConfig:
     """End the episode (terminated) as soon as a key that is not due sounds."""
     randomize_hand_positions: bool = False
     """Start each forearm up to 5 cm along the keyboard from its home, drawn from the seed."""
+    initial_buffer_s: float = 0.0
+    """Silence before the song, rounded to whole control steps (the original's
+    ``initial_buffer_time``, default 0 there too): time for the hands to reach the first
+    notes, which the debug songs make due in the very first step. Its steps are scored like
+    any other (nothing due); :meth:`pianist.eval.Episode.metrics` also scores the song's steps
+    alone."""
     fingering_reward: str = "assigned"
     """"assigned": each due key's labelled finger is pulled to it (the paper); "optimal": the
     fingertips are matched to the due keys by a minimum-distance assignment each step, so no
@@ -56,6 +63,10 @@ class EnvConfig:
                 f"fingering_reward must be one of {', '.join(FINGERING_REWARDS)}, "
                 f"not {self.fingering_reward!r}"
             )
+        buffer = self.initial_buffer_s
+        number = isinstance(buffer, int | float) and not isinstance(buffer, bool)
+        if not (number and math.isfinite(buffer) and buffer >= 0):
+            raise ValueError(f"initial_buffer_s must be a number of seconds >= 0, not {buffer!r}")
         timestep = self.scene.physics_preset.timestep_s
         ratio = self.control_timestep_s / timestep
         if self.control_timestep_s <= 0 or abs(ratio - round(ratio)) > 1e-6 or round(ratio) < 1:
@@ -68,6 +79,11 @@ class EnvConfig:
     def substeps(self) -> int:
         """Physics steps per control step."""
         return round(self.control_timestep_s / self.scene.physics_preset.timestep_s)
+
+    @property
+    def lead_in_steps(self) -> int:
+        """Control steps of silence before the song (``initial_buffer_s`` rounded)."""
+        return round(self.initial_buffer_s / self.control_timestep_s)
 
 
 def make_config(
@@ -82,6 +98,7 @@ def make_config(
     forearm_dofs: tuple[str, ...] = ("tx", "ty"),
     wrong_press_termination: bool = False,
     randomize_hand_positions: bool = False,
+    initial_buffer_s: float = 0.0,
     control_timestep_s: float = C.CONTROL_TIMESTEP_S,
     rewards: RewardWeights | None = None,
     fingering_reward: str = "assigned",
@@ -92,6 +109,7 @@ def make_config(
         control_timestep_s=control_timestep_s,
         wrong_press_termination=wrong_press_termination,
         randomize_hand_positions=randomize_hand_positions,
+        initial_buffer_s=initial_buffer_s,
         fingering_reward=fingering_reward,
         scene=SceneOptions(
             hands=hands,  # type: ignore[arg-type]

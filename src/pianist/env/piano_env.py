@@ -120,6 +120,7 @@ class PianoEnv(gym.Env):
         self.metadata = {**self.metadata, "render_fps": round(1 / self.config.control_timestep_s)}
 
         self.goal, self.song = resolve_goal(song, self.config.control_timestep_s)
+        self.goal = self.goal.with_lead_in(self.config.lead_in_steps)
         self.scene: Scene = build_scene(self.config.scene, key_history=self.config.substeps)
         self.model: mujoco.MjModel = self.scene.model
         self.data = mujoco.MjData(self.model)

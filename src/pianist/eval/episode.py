@@ -36,6 +36,7 @@ class Episode:
         end_time_s: simulation time at the end of the episode.
         qpos: (T + 1, nq) joint positions after reset and after each step (for video), or
             None when not recorded.
+        lead_in_steps: steps of silence before the song (``EnvConfig.initial_buffer_s``).
     """
 
     actions: np.ndarray
@@ -49,6 +50,7 @@ class Episode:
     control_timestep_s: float
     end_time_s: float
     qpos: np.ndarray | None = None
+    lead_in_steps: int = 0
     extra: dict[str, Any] = field(default_factory=dict)
 
     @property
@@ -57,16 +59,28 @@ class Episode:
 
     def metrics(self) -> dict[str, float]:
         """precision, recall, f1, sustain_precision/recall/f1 (facts section 5), plus steps,
-        seconds (simulated) and return."""
+        seconds (simulated) and return.
+
+        After a lead-in (``lead_in_steps`` > 0), whose silent steps count like any other as in
+        the original, also song_precision, song_recall and song_f1: the same over the song's
+        own steps, which a lead-in does not inflate.
+        """
         keys = precision_recall_f1(self.active_keys, self.goal_keys)
         pedal = sustain_metrics(self.sustain, self.goal_sustain)
-        return {
+        metrics = {
             **keys,
             **{f"sustain_{name}": value for name, value in pedal.items()},
             "steps": self.num_steps,
             "seconds": self.num_steps * self.control_timestep_s,
             "return": float(self.rewards.sum()),
         }
+        start = self.lead_in_steps
+        if start > 0:
+            metrics["lead_in_steps"] = start
+            if self.num_steps > start:
+                song = precision_recall_f1(self.active_keys[start:], self.goal_keys[start:])
+                metrics.update({f"song_{name}": value for name, value in song.items()})
+        return metrics
 
     def performance(self, name: str = "performance") -> Song:
         """The notes the hands played, from the note events (velocity is not simulated)."""

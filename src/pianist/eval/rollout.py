@@ -67,6 +67,7 @@ def run_episode(
         control_timestep_s=env.config.control_timestep_s,
         end_time_s=float(env.data.time),
         qpos=np.stack(qpos),
+        lead_in_steps=int(getattr(env.config, "lead_in_steps", 0)),
     )
 
 
