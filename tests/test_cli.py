@@ -281,3 +281,33 @@ def test_training_commands_fail_in_one_line(tmp_path, args, message):
     result = run(*args)
     assert result.returncode == 1 and message in result.stderr, result.stderr
     assert len(result.stderr.strip().splitlines()) == 1
+
+
+def test_a_lead_in_delays_the_song_and_scores_its_steps_alone(tmp_path):
+    out = tmp_path / "lead"
+    assert _play_zero(out, "--initial-buffer-s", "0.5") == 0
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["steps"] == 81 + 10 and metrics["lead_in_steps"] == 10
+    assert metrics["env_options"]["initial_buffer_s"] == 0.5
+    # The zero controller presses nothing: the silent lead-in scores, the song does not.
+    assert metrics["song_f1"] == pytest.approx(0.0) and metrics["f1"] == pytest.approx(10 / 91)
+    with wave.open(str(out / "score.wav")) as score:
+        rate = score.getframerate()
+        samples = np.frombuffer(score.readframes(score.getnframes()), dtype=np.int16)
+    samples = samples.reshape(-1, score.getnchannels()).astype(float)
+    # The score starts with the lead-in's silence, like the performance.
+    assert np.abs(samples[: int(0.45 * rate)]).max() == 0
+    assert np.abs(samples[int(0.5 * rate) : int(0.7 * rate)]).max() > 1000
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        (["--initial-buffer-s", "-1"], "must be >= 0"),
+        (["--initial-buffer-s", "0.5", "--controller", "policy:/no/run"], "trained policy"),
+    ],
+)
+def test_a_bad_lead_in_is_one_line(tmp_path, extra, message):
+    result = run("play", "c-major-chords", "--out", str(tmp_path / "o"), *extra)
+    assert result.returncode == 1 and message in result.stderr, result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1
