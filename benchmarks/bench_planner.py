@@ -10,10 +10,14 @@ it (the benchmark's defaults plus the forearm height slide, see ``planner_env_op
 - dF1: F1 on fast minus F1 on faithful, to check that the fast preset keeps results;
 - with ``--noisy N``: the mean F1 over N more episodes with Gaussian noise (std 0.005) on the
   planner's actions. One episode's F1 is a chaotic function of the actions (contacts), so
-  differences of ~0.01 between two planner versions are only real if the noisy means agree.
+  differences of ~0.01 between two planner versions are only real if the noisy means agree;
+- with ``--initial-buffer S``: the same song after S seconds of silence (the original's
+  ``initial_buffer_time``), scored over the song's own steps (``song_f1``): what the cold
+  start costs, since the debug songs make a note due in the first step while the hands are
+  still at home. The benchmark's own numbers are the ones without it.
 
 Run: ``python benchmarks/bench_planner.py [--songs a,b | --suite open-etude-12]
-[--presets faithful,fast] [--repeats 3] [--noisy 5] [--json out.json]``.
+[--presets faithful,fast] [--repeats 3] [--noisy 5] [--initial-buffer 0.5] [--json out.json]``.
 """
 
 from __future__ import annotations
@@ -48,12 +52,20 @@ class _TimedPlanner(IKPlanner):
         return action
 
 
-def noisy_f1(song: str, physics: str, episodes: int) -> tuple[float, float]:
-    """Mean and standard deviation of F1 over ``episodes`` noisy episodes."""
-    env = PianoEnv(song, physics=physics, **planner_env_options())
+def noisy_f1(song: str, physics: str, episodes: int, buffer_s: float = 0.0) -> tuple[float, float]:
+    """Mean and standard deviation of F1 over ``episodes`` noisy episodes (after a lead-in of
+    ``buffer_s``: the F1 of the song's own steps)."""
+    env = PianoEnv(song, physics=physics, initial_buffer_s=buffer_s, **planner_env_options())
     noisy = NoisyController(IKPlanner(), NOISE_STD)
-    f1 = [run_episode(env, noisy, seed=i).metrics()["f1"] for i in range(episodes)]
+    key = "song_f1" if env.config.lead_in_steps else "f1"
+    f1 = [run_episode(env, noisy, seed=i).metrics()[key] for i in range(episodes)]
     return float(np.mean(f1)), float(np.std(f1))
+
+
+def lead_in_f1(song: str, physics: str, buffer_s: float) -> float:
+    """F1 of the song's own steps in one episode after ``buffer_s`` seconds of silence."""
+    env = PianoEnv(song, physics=physics, initial_buffer_s=buffer_s, **planner_env_options())
+    return run_episode(env, IKPlanner(), seed=0).metrics()["song_f1"]
 
 
 def bench_song(song: str, physics: str, repeats: int) -> dict[str, float]:
@@ -85,6 +97,9 @@ def main() -> None:
     parser.add_argument("--presets", default=",".join(PRESETS))
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--noisy", type=int, default=0, help="episodes of the noisy mean F1")
+    parser.add_argument(
+        "--initial-buffer", type=float, default=0.0, help="also score after S s of silence"
+    )
     parser.add_argument("--json", default=None, help="also write the results to this file")
     args = parser.parse_args()
     songs = list_songs(args.suite) if args.suite else args.songs.split(",")
@@ -94,6 +109,9 @@ def main() -> None:
     header = f"{'song':34s} {'preset':9s} {'P':>6s} {'R':>6s} {'F1':>6s} {'rtf':>6s} {'plan':>5s}"
     if args.noisy:
         header += f" {'noisy F1':>14s}"
+    buffer = args.initial_buffer
+    if buffer:
+        header += f" {'lead-in F1':>10s}" + (f" {'noisy':>14s}" if args.noisy else "")
     print(header)
     for song in songs:
         results[song] = {}
@@ -106,6 +124,14 @@ def main() -> None:
             if args.noisy:
                 r["noisy_f1_mean"], r["noisy_f1_std"] = noisy_f1(song, physics, args.noisy)
                 line += f" {r['noisy_f1_mean']:7.3f}+-{r['noisy_f1_std']:.3f}"
+            if buffer:
+                r["initial_buffer_s"] = buffer
+                r["lead_in_song_f1"] = lead_in_f1(song, physics, buffer)
+                line += f" {r['lead_in_song_f1']:10.3f}"
+                if args.noisy:
+                    mean, std = noisy_f1(song, physics, args.noisy, buffer)
+                    r["lead_in_noisy_song_f1_mean"], r["lead_in_noisy_song_f1_std"] = mean, std
+                    line += f" {mean:7.3f}+-{std:.3f}"
             results[song][physics] = r
             print(line, flush=True)
     if set(PRESETS) <= set(presets):
@@ -117,6 +143,9 @@ def main() -> None:
         if args.noisy:
             noisy = np.mean([r[p]["noisy_f1_mean"] for r in results.values()])
             print(f"mean noisy F1 {p}: {noisy:.3f}")
+        if buffer:
+            lead = np.mean([r[p]["lead_in_song_f1"] for r in results.values()])
+            print(f"mean F1 {p} after a {buffer:g} s lead-in (song steps): {lead:.3f}")
     if args.json:
         with open(args.json, "w") as handle:
             json.dump(results, handle, indent=2)
