@@ -106,3 +106,16 @@ def test_importing_the_agents_package_does_not_load_jax():
     code = "import sys, pianist, pianist.agents, pianist.agents.policy; print('jax' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.split() == ["False"]
+
+
+def test_a_task_can_give_the_hands_a_lead_in():
+    from pianist.agents.envs import make_agent_env
+
+    cfg = get_preset("fast")
+    task = dataclasses.replace(cfg.task, initial_buffer_s=0.5)
+    env = make_agent_env("twinkle-twinkle", task)
+    plain = make_agent_env("twinkle-twinkle", cfg.task)
+    assert env.unwrapped.goal.num_frames == plain.unwrapped.goal.num_frames + 10
+    assert not env.unwrapped.goal.keys[:10].any()
+    restored = TrainConfig.from_dict(dataclasses.replace(cfg, task=task).to_dict())
+    assert restored.task.initial_buffer_s == 0.5

@@ -89,6 +89,8 @@ class TaskConfig:
     primitive_fingertip_collisions: bool = True
     forearm_dofs: tuple[str, ...] = ("tx", "ty")
     """Forearm joints (the paper's: slide along the keyboard and towards it)."""
+    initial_buffer_s: float = 0.0
+    """Seconds of silence before the song (the original's ``initial_buffer_time``)."""
     action_reward_observation: bool = True
     """Previous action and reward in the observation (the paper's runs)."""
     goal_frames_observed: int | None = None
@@ -115,6 +117,7 @@ class TaskConfig:
             "gravity_compensation": self.gravity_compensation,
             "primitive_fingertip_collisions": self.primitive_fingertip_collisions,
             "forearm_dofs": self.forearm_dofs,
+            "initial_buffer_s": self.initial_buffer_s,
         }
 
 
