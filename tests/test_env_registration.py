@@ -14,9 +14,14 @@ from pianist.env.registration import env_id, register_envs
 from pianist.music import list_songs
 
 
+def _builtin() -> list[str]:
+    return list_songs() + list_songs("robopianist-debug") + list_songs("open-etude-12")
+
+
 def test_every_song_is_registered() -> None:
-    songs = list_songs() + list_songs("open-etude-12")
-    assert len(songs) >= 18 and "twinkle-twinkle" in songs and "joplin-maple-leaf-rag" in songs
+    songs = _builtin()
+    assert len(songs) >= 24 and "twinkle-twinkle" in songs and "joplin-maple-leaf-rag" in songs
+    assert "CMajorChordProgressionTwoHands" in songs
     for song in songs:
         spec = gym.spec(f"pianist/{song}-v0")
         assert spec.kwargs["song"] == song
@@ -28,7 +33,7 @@ def test_every_song_is_registered() -> None:
 def test_register_envs_is_idempotent() -> None:
     before = {k for k in gym.registry if k.startswith("pianist/")}
     ids = register_envs()
-    assert ids == [f"pianist/{s}-v0" for s in list_songs() + list_songs("open-etude-12")]
+    assert ids == [f"pianist/{s}-v0" for s in _builtin()]
     assert {k for k in gym.registry if k.startswith("pianist/")} == before
 
 

@@ -106,6 +106,62 @@ def test_chords_four_notes_per_second() -> None:
     assert first == _pitches("C3 C4 E4 G4")
 
 
+ORIGINAL = [
+    "TwinkleTwinkleLittleStar",
+    "CMajorScaleOneHand",
+    "CMajorScaleTwoHands",
+    "DMajorScaleOneHand",
+    "DMajorScaleTwoHands",
+    "CMajorChordProgressionTwoHands",
+]
+
+
+def test_the_original_debug_songs_are_listed_and_shaped_like_ours() -> None:
+    assert list_songs("robopianist-debug") == ORIGINAL
+    for ours, original in zip(NAMES, ORIGINAL, strict=True):
+        song = get_song(original)
+        count, duration, hands, frames = EXPECTED[ours]
+        assert (song.num_notes, song.hands, goal_frames(song).num_frames) == (count, hands, frames)
+        assert song.duration_s == pytest.approx(duration) and song.has_full_fingering
+        assert song.name == original and song_description(original)
+        # Also by the original's environment id.
+        assert load_song(f"RoboPianist-debug-{original}-v0") == song
+
+
+def _parts(name: str) -> list[tuple[float, int, int]]:
+    return sorted((n.onset_s, n.pitch, n.finger) for n in get_song(name).notes)
+
+
+def test_the_original_debug_songs_have_its_notes_and_fingers() -> None:
+    # Written out as the original lists them: MIDI pitch and finger 0-4 right, 5-9 left.
+    twinkle = [60, 60, 67, 67, 69, 69, 67, 65, 65, 64, 64, 62, 62, 60]
+    fingers = [0, 0, 2, 2, 3, 3, 2, 3, 3, 2, 2, 1, 1, 0]
+    assert [(p, f) for _, p, f in _parts("TwinkleTwinkleLittleStar")] == list(
+        zip(twinkle, fingers, strict=True)
+    )
+    steps = [0, 2, 4, 5, 7, 9, 11, 12, 11, 9, 7, 5, 4, 2, 0]
+    right = [0, 1, 2, 0, 1, 2, 3, 4, 3, 2, 1, 0, 2, 1, 0]
+    left = [9, 8, 7, 6, 5, 7, 6, 5, 6, 7, 5, 6, 7, 8, 9]
+    for tonic in (0, 2):
+        name = "CMajorScale" if tonic == 0 else "DMajorScale"
+        one = [(p, f) for _, p, f in _parts(f"{name}OneHand")]
+        assert one == [(72 + tonic + d, f) for d, f in zip(steps, right, strict=True)]
+        both = _parts(f"{name}TwoHands")
+        assert [(p, f) for _, p, f in both if f >= 5] == [
+            (48 + tonic + d, f) for d, f in zip(steps, left, strict=True)
+        ]
+        assert [(p, f) for _, p, f in both if f < 5] == one
+    chords = [
+        [(48, 5), (60, 0), (64, 2), (67, 4)],
+        [(41, 8), (65, 0), (69, 2), (72, 4)],
+        [(43, 7), (67, 0), (71, 2), (74, 4)],
+        [(48, 5), (60, 0), (64, 2), (67, 4)],
+    ]
+    assert _parts("CMajorChordProgressionTwoHands") == [
+        (float(second), p, f) for second, chord in enumerate(chords) for p, f in chord
+    ]
+
+
 def test_unknown_song_suggests_close_matches() -> None:
     with pytest.raises(UnknownSongError) as info:
         get_song("twinkle")

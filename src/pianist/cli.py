@@ -25,8 +25,11 @@ class CliError(Exception):
 class Songs:
     """List songs with their size and difficulty: duration, notes, notes/s, span, polyphony."""
 
-    suite: Literal["all", "debug", "open-etude-12", "etude-12", "repertoire-150"] = "all"
-    """Which suite: the debug songs, the shipped open library, or imported PIG pieces."""
+    suite: Literal[
+        "all", "debug", "robopianist-debug", "open-etude-12", "etude-12", "repertoire-150"
+    ] = "all"
+    """Which suite: the debug songs, the original's debug songs note for note, the shipped open
+    library, or imported PIG pieces."""
 
     def run(self) -> None:
         import warnings
@@ -35,7 +38,7 @@ class Songs:
 
         suites = SUITES if self.suite == "all" else (self.suite,)
         _out(
-            f"{'name':40s} {'suite':14s} {'s':>6s} {'notes':>5s} {'n/s':>5s} "
+            f"{'name':40s} {'suite':17s} {'s':>6s} {'notes':>5s} {'n/s':>5s} "
             f"{'span':>4s} {'poly':>4s}"
         )
         for suite in suites:
@@ -51,7 +54,7 @@ class Songs:
                     stats = song_stats(load_song(name))
                 span = "-" if stats.max_hand_span is None else str(stats.max_hand_span)
                 _out(
-                    f"{name:40s} {suite:14s} {stats.duration_s:6.1f} {stats.num_notes:5d} "
+                    f"{name:40s} {suite:17s} {stats.duration_s:6.1f} {stats.num_notes:5d} "
                     f"{stats.notes_per_second:5.1f} {span:>4s} {stats.max_polyphony:4d}"
                 )
 

@@ -1,4 +1,5 @@
-"""Gymnasium ids: ``pianist/<song>-v0`` for every built-in song (debug and open-etude-12).
+"""Gymnasium ids: ``pianist/<song>-v0`` for every built-in song (debug, robopianist-debug and
+open-etude-12).
 
 Registering only adds entries to Gymnasium's registry (no model is built until ``gym.make``).
 """
@@ -8,6 +9,7 @@ from __future__ import annotations
 import gymnasium as gym
 
 from pianist.music import OPEN_SUITE, list_songs
+from pianist.music.library import ORIGINAL_DEBUG_SUITE
 
 NAMESPACE = "pianist"
 VERSION = 0
@@ -21,7 +23,7 @@ def env_id(song: str) -> str:
 def register_envs() -> list[str]:
     """Register every built-in song (idempotent) and return the ids."""
     ids = []
-    for song in list_songs("debug") + list_songs(OPEN_SUITE):
+    for song in list_songs("debug") + list_songs(ORIGINAL_DEBUG_SUITE) + list_songs(OPEN_SUITE):
         name = env_id(song)
         if name not in gym.registry:
             gym.register(

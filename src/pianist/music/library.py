@@ -1,9 +1,16 @@
 """Built-in debug songs written in code (every note fingered) and :func:`load_song`.
 
-The songs follow RoboPianist's debug set (facts section 4): Twinkle Twinkle (one hand, 8 s,
-14 notes), C and D major scales (one hand 15 notes / two hands 30 notes, 7.5 s) and a C major
-chord progression (two hands, 4 s, 16 notes). Fingers use pianists' numbers 1 (thumb) ..
-5 (little) in the tables below and are mapped to 0-4 (right) / 5-9 (left).
+The ``debug`` songs follow the shape of RoboPianist's debug set (facts section 4): Twinkle
+Twinkle (one hand, 8 s, 14 notes), C and D major scales (one hand 15 notes / two hands 30
+notes, 7.5 s) and a C major chord progression (two hands, 4 s, 16 notes). They differ from
+the original's notes in places: Twinkle's fingering keeps the thumb on C until the long G,
+the scales' right hand plays an octave lower (from C4/D4, the left from C3/D3), and the
+chords move by close voice leading over a bass (the original plays root-position triads that
+jump, over C3 F2 G2 C3). The ``robopianist-debug`` suite has the original's six songs note
+for note under the original's names (``CMajorChordProgressionTwoHands``, or its environment
+id ``RoboPianist-debug-CMajorChordProgressionTwoHands-v0``), to compare with published runs.
+Fingers use pianists' numbers 1 (thumb) .. 5 (little) in the tables below and are mapped to
+0-4 (right) / 5-9 (left).
 """
 
 from __future__ import annotations
@@ -116,6 +123,76 @@ def _chords() -> list[Note]:
     return notes
 
 
+def _original_twinkle() -> list[Note]:
+    # The original's fingering: the hand sits with the thumb on E from the first G.
+    pitches = ("C4 C4 G4 G4 A4 A4 G4 F4 F4 E4 E4 D4 D4 C4").split()
+    beats = (1, 1, 1, 1, 1, 1, 2, 1, 1, 1, 1, 1, 1, 2)
+    fingers = (1, 1, 3, 3, 4, 4, 3, 4, 4, 3, 3, 2, 2, 1)
+    return _melody(pitches, beats, fingers, RIGHT)
+
+
+def _original_scale(tonic: str, both_hands: bool) -> list[Note]:
+    """The original's scales: the right hand from octave 5, the left from octave 3."""
+    notes = _scale_up_down(f"{tonic}5", RIGHT)
+    if both_hands:
+        notes += _scale_up_down(f"{tonic}3", LEFT)
+    return notes
+
+
+# The original's progression: root-position right-hand triads (fingers 1 3 5) that jump from
+# chord to chord, over a left-hand bass. Entries: (triad's root, bass name, left finger).
+_ORIGINAL_CHORDS = (("C4", "C3", 1), ("F4", "F2", 4), ("G4", "G2", 3), ("C4", "C3", 1))
+
+
+def _original_chords() -> list[Note]:
+    notes = []
+    for index, (root, bass, bass_finger) in enumerate(_ORIGINAL_CHORDS):
+        onset, offset = float(index), float(index + 1)
+        notes.append(Note(name_to_pitch(bass), onset, offset, finger=_finger(LEFT, bass_finger)))
+        for step, number in zip((0, 4, 7), (1, 3, 5), strict=True):
+            pitch = name_to_pitch(root) + step
+            notes.append(Note(pitch, onset, offset, finger=_finger(RIGHT, number)))
+    return notes
+
+
+ORIGINAL_DEBUG_SUITE = "robopianist-debug"
+_ORIGINAL_ID_PREFIX = "RoboPianist-debug-"
+_ORIGINAL_SONGS: dict[str, tuple[str, Callable[[], list[Note]]]] = {
+    "TwinkleTwinkleLittleStar": (
+        "the original's Twinkle Twinkle, right hand, 14 notes, 8 s",
+        _original_twinkle,
+    ),
+    "CMajorScaleOneHand": (
+        "the original's C major scale, right hand from C5, 15 notes, 7.5 s",
+        lambda: _original_scale("C", both_hands=False),
+    ),
+    "CMajorScaleTwoHands": (
+        "the original's C major scale, hands two octaves apart (C5 / C3), 30 notes, 7.5 s",
+        lambda: _original_scale("C", both_hands=True),
+    ),
+    "DMajorScaleOneHand": (
+        "the original's D major scale, right hand from D5, 15 notes, 7.5 s",
+        lambda: _original_scale("D", both_hands=False),
+    ),
+    "DMajorScaleTwoHands": (
+        "the original's D major scale, hands two octaves apart (D5 / D3), 30 notes, 7.5 s",
+        lambda: _original_scale("D", both_hands=True),
+    ),
+    "CMajorChordProgressionTwoHands": (
+        "the original's C major progression: root-position triads that jump, over C3 F2 G2 C3, "
+        "16 notes, 4 s",
+        _original_chords,
+    ),
+}
+
+
+def _original_name(name: str) -> str | None:
+    """The ``robopianist-debug`` song ``name`` names (its own name or environment id)."""
+    if name.startswith(_ORIGINAL_ID_PREFIX) and name.endswith("-v0"):
+        name = name[len(_ORIGINAL_ID_PREFIX) : -len("-v0")]
+    return name if name in _ORIGINAL_SONGS else None
+
+
 _SONGS: dict[str, tuple[str, Callable[[], list[Note]]]] = {
     "twinkle-twinkle": (
         "Twinkle Twinkle Little Star, right hand, 14 notes, 8 s",
@@ -144,17 +221,18 @@ _SONGS: dict[str, tuple[str, Callable[[], list[Note]]]] = {
 }
 
 
-#: Suites :func:`list_songs` knows: the debug songs, the shipped open library, and the
-#: PIG-based suites of the paper (available once ``pianist import-pig`` has run).
-SUITES = ("debug", OPEN_SUITE, *PIG_SUITES)
+#: Suites :func:`list_songs` knows: the debug songs, the original's debug songs, the shipped
+#: open library, and the PIG-based suites of the paper (once ``pianist import-pig`` has run).
+SUITES = ("debug", ORIGINAL_DEBUG_SUITE, OPEN_SUITE, *PIG_SUITES)
 
 
 def list_songs(suite: str | None = None) -> list[str]:
     """Names of the songs of ``suite``, in a stable order; by default the built-in debug songs.
 
     Args:
-        suite: None or "debug" (the debug songs), "open-etude-12" (the shipped open library),
-            "etude-12" or "repertoire-150" (imported PIG pieces).
+        suite: None or "debug" (the debug songs), "robopianist-debug" (the original's debug
+            songs note for note), "open-etude-12" (the shipped open library), "etude-12" or
+            "repertoire-150" (imported PIG pieces).
 
     Raises:
         ValueError: unknown suite.
@@ -162,6 +240,8 @@ def list_songs(suite: str | None = None) -> list[str]:
     """
     if suite is None or suite == "debug":
         return list(_SONGS)
+    if suite == ORIGINAL_DEBUG_SUITE:
+        return list(_ORIGINAL_SONGS)
     if suite == OPEN_SUITE:
         return list_open_songs()
     if suite in PIG_SUITES:
@@ -170,7 +250,8 @@ def list_songs(suite: str | None = None) -> list[str]:
 
 
 def _unknown(name: str) -> UnknownSongError:
-    close = difflib.get_close_matches(name, list(_SONGS) + list_open_songs(), n=3, cutoff=0.5)
+    known = list(_SONGS) + list(_ORIGINAL_SONGS) + list_open_songs()
+    close = difflib.get_close_matches(name, known, n=3, cutoff=0.5)
     hint = f"did you mean {', '.join(close)}? " if close else ""
     return UnknownSongError(
         f"unknown song {name!r}: {hint}run `pianist songs` to list the built-in songs, "
@@ -186,6 +267,9 @@ def song_description(name: str) -> str:
     """
     if name in _SONGS:
         return _SONGS[name][0]
+    original = _original_name(name)
+    if original is not None:
+        return f"{_ORIGINAL_SONGS[original][0]} ({ORIGINAL_DEBUG_SUITE})"
     if name in list_open_songs():
         info = open_song_info(name)
         return (
@@ -195,13 +279,17 @@ def song_description(name: str) -> str:
 
 
 def get_song(name: str) -> Song:
-    """Build built-in song ``name`` (fully fingered): a debug song or an open-library piece.
+    """Build built-in song ``name`` (fully fingered): a debug song (ours or the original's) or
+    an open-library piece.
 
     Raises:
         UnknownSongError: ``name`` is not a built-in song.
     """
     if name in _SONGS:
         return Song(notes=tuple(_SONGS[name][1]()), name=name)
+    original = _original_name(name)
+    if original is not None:
+        return Song(notes=tuple(_ORIGINAL_SONGS[original][1]()), name=original)
     if name in list_open_songs():
         return load_open_song(name)
     raise _unknown(name)
@@ -214,9 +302,11 @@ def load_song(
 ) -> Song:
     """Resolve a song given as a :class:`Song`, a built-in name or a file path.
 
-    Names: the debug songs, the ``open-etude-12`` pieces, and (once ``pianist import-pig``
-    has run) the PIG pieces by RoboPianist name (``FrenchSuiteNo1Allemande``,
-    ``RoboPianist-etude-12-FrenchSuiteNo1Allemande-v0``, ``pig-001``).
+    Names: the debug songs, the original's (``robopianist-debug``, also by environment id
+    ``RoboPianist-debug-TwinkleTwinkleLittleStar-v0``), the ``open-etude-12`` pieces, and
+    (once ``pianist import-pig`` has run) the PIG pieces by RoboPianist name
+    (``FrenchSuiteNo1Allemande``, ``RoboPianist-etude-12-FrenchSuiteNo1Allemande-v0``,
+    ``pig-001``).
     ``.mid``/``.midi`` files go to :func:`read_midi` (no fingering), ``.txt`` files to
     :func:`read_pig`; ``out_of_range`` is passed to both. A built-in name wins over a file of
     the same name in the working directory.
@@ -254,7 +344,7 @@ def _load_song(
     if isinstance(name_or_path, Song):
         return name_or_path
     text = os.fspath(name_or_path)
-    if isinstance(name_or_path, str) and text in _SONGS:
+    if isinstance(name_or_path, str) and (text in _SONGS or _original_name(text) is not None):
         return get_song(text)
     if isinstance(name_or_path, str) and text in list_open_songs():
         return load_open_song(text)
