@@ -125,6 +125,14 @@ class PlannerConfig:
     hover_in_shift: bool = True
     """During a large forearm move the fingers of the note it is for hover over their keys
     (instead of taking their lifted posture)."""
+    jump_lift_m: float = 0.03
+    """...except a finger still low on the keys (within ``jump_low_m`` of the white keys' top)
+    whose key is further than this across the keyboard: it takes its lifted posture for the
+    move. Skimming towards a key it cannot reach yet, a finger is dragged across the keys and
+    sticks to one (in the original's chord progression the right thumb, 9 cm from its next
+    C4, caught F4 and held it, and the hand, through the whole last chord)."""
+    jump_low_m: float = 0.01
+    """Height above the white keys' top below which a finger counts as low (see above)."""
     lazy_m: float = 0.02
     """The hand stays where it is for the next notes if every finger still reaches its key
     from there and it is at most this far from where those notes would put it (0: always
@@ -525,6 +533,11 @@ class _Hand:
             # The hand is moving: the fingers of the note it moves for travel with it just
             # above their keys, the others stay lifted.
             self._hover_over(planner, self.shift_to[now], targets, active)
+            # A finger still on the keys with far to go comes up first (``jump_lift_m``).
+            low = real_tips[:, 2] < C.WHITE_KEY_HEIGHT_M + radius + cfg.jump_low_m
+            far = active & low & (np.abs(targets[:, 1] - real_tips[:, 1]) > cfg.jump_lift_m)
+            active[far] = False
+            targets[far] = self.lift_tips[far] + origin
             return targets - origin, active
         lead = min(now + cfg.press_lead_frames, goal.num_frames - 1)
         key_down = planner.env.data.qpos[planner.key_qpos] >= planner.key_threshold
