@@ -190,3 +190,19 @@ def test_song_stats() -> None:
     assert stats.hands == ("left", "right")
     assert song_stats(strip_fingering(get_song("twinkle-twinkle"))).max_hand_span is None
     assert song_stats(Song(())).notes_per_second == 0.0
+
+
+@pytest.mark.parametrize(
+    "pitches",
+    [
+        (63, 67, 70, 75),  # E-flat arpeggio
+        (66, 68, 70, 71, 73, 75, 77, 78),  # F# major up an octave from F#4
+    ],
+)
+def test_the_thumb_is_kept_off_black_keys(pitches):
+    # The robot's thumb cannot press a black key (a human's would start both on the thumb).
+    song = assign_fingering(
+        Song(tuple(Note(p, 0.25 * i, 0.25 * i + 0.25) for i, p in enumerate(pitches)))
+    )
+    on_black = [n.pitch for n in song.notes if n.finger == 0 and F.KEY_IS_BLACK[n.pitch - 21]]
+    assert on_black == [], [(n.pitch, n.finger) for n in song.notes]

@@ -111,7 +111,11 @@ W_THUMB_CROSS = 1.0  # the thumb passes under a finger or a finger over the thum
 W_THUMB_CROSS_BLACK = 1.0  # ... with the thumb on a black key and the other on a white one
 W_OTHER_CROSS = 8.0  # two fingers other than the thumb cross
 W_SAME_FINGER = 3.0  # the same finger on two different keys one after the other
-W_THUMB_BLACK = 1.0
+# The Shadow thumb cannot press a black key at all (no sampled posture reaches one; see
+# pianist.control.planner): a thumb on a black key costs more than an overstretch, less than a
+# finger that is still busy. (1.0, a human cost, left 261 of the open library's 2827 notes on a
+# black key under the thumb; the planner then missed them.)
+W_THUMB_BLACK = 20.0
 W_LITTLE_BLACK = 0.5
 W_RING = 0.3  # the ring finger is the weakest and least independent: use it when it helps
 W_REPEAT_CHANGE = 0.5  # a repeated key struck by another finger (the hand must shift)
