@@ -206,3 +206,17 @@ def test_the_thumb_is_kept_off_black_keys(pitches):
     )
     on_black = [n.pitch for n in song.notes if n.finger == 0 and F.KEY_IS_BLACK[n.pitch - 21]]
     assert on_black == [], [(n.pitch, n.finger) for n in song.notes]
+
+
+def test_robot_fingering_refingers_a_human_thumb_off_black_keys():
+    # A human fingering (thumb on E-flat) for the right hand, and a left-hand bass note.
+    right = [
+        Note(p, 0.25 * i, 0.25 * i + 0.25, finger=f)
+        for i, (p, f) in enumerate([(63, 0), (67, 1), (70, 2), (75, 4)])
+    ]
+    song = Song(tuple(right) + (Note(39, 0.0, 1.0, finger=9),))
+    assert ensure_fingering(song, "auto") == song  # the file's own fingers are kept
+    robot = ensure_fingering(song, "robot")
+    assert [n.hand for n in robot.notes] == [n.hand for n in song.notes]
+    assert not [n for n in robot.notes if n.finger == 0 and F.KEY_IS_BLACK[n.pitch - 21]]
+    assert load_song(song, fingering="robot") == robot

@@ -135,10 +135,12 @@ class Play:
     """planner; mpc (the paper's predictive sampling; mpc:tenth, or e.g.
     mpc:paper,num_samples=20,sigma=0.1,horizon_s=0.3,num_knots=3,iterations=8); policy:RUN_DIR
     (a trained agent); random; zero; or replay:ACTIONS.npy."""
-    fingering: Literal["auto", "file", "none"] = "auto"
+    fingering: Literal["auto", "file", "robot", "none"] = "auto"
     """auto: keep the song's fingering and estimate what is missing (hands from a MIDI's
-    tracks when they say so); file: require the file's own; none: no labels (the fingering
-    reward then matches fingertips to keys; the planner needs fingers)."""
+    tracks when they say so); file: require the file's own; robot: re-finger every note for
+    this robot hand, keeping the song's hands (a human fingering puts the thumb on black keys,
+    which the Shadow thumb cannot press); none: no labels (the fingering reward then matches
+    fingertips to keys; the planner needs fingers)."""
     out: Path = Path("out")
     """Output directory (created if missing)."""
     physics: Literal["faithful", "fast"] = "faithful"

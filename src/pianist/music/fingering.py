@@ -143,7 +143,7 @@ _MIDDLE_C_W = key_position_w(60)
 #: Notes whose onsets are this close (s) are struck together (one slice).
 CHORD_TOLERANCE_S = 0.03
 _EPS_S = 1e-6
-FingeringMode = Literal["auto", "file", "none"]
+FingeringMode = Literal["auto", "file", "robot", "none"]
 
 
 def _span_cost(limits: Limits, d: float) -> float:
@@ -642,8 +642,10 @@ def ensure_fingering(song: Song, mode: FingeringMode = "auto") -> Song:
     Args:
         song: a loaded song.
         mode: "auto" fingers the notes that have no finger (a file's own fingers are kept);
-            "file" requires the file to finger every note; "none" returns the song as is
-            (for the environment's ``fingering_reward="optimal"``, which needs no labels).
+            "file" requires the file to finger every note; "robot" re-fingers every note for
+            this robot hand (its thumb cannot press a black key, its span is short of an
+            octave), keeping the song's hands; "none" returns the song as is (for the
+            environment's ``fingering_reward="optimal"``, which needs no labels).
 
     Raises:
         MusicError: ``mode="file"`` and some notes have no finger; or an unknown mode.
@@ -660,4 +662,6 @@ def ensure_fingering(song: Song, mode: FingeringMode = "auto") -> Song:
         return song
     if mode == "auto":
         return song if song.has_full_fingering else assign_fingering(song)
-    raise MusicError(f"unknown fingering mode {mode!r}: use 'auto', 'file' or 'none'")
+    if mode == "robot":
+        return assign_fingering(song, keep_existing=False)
+    raise MusicError(f"unknown fingering mode {mode!r}: use 'auto', 'file', 'robot' or 'none'")

@@ -314,7 +314,8 @@ def load_song(
     ``fingering`` (None leaves the song as loaded) applies
     :func:`pianist.music.fingering.ensure_fingering`: "auto" estimates the missing fingers
     (for a MIDI file, hands come from its tracks/channels when they name them), "file"
-    requires the file's own complete fingering, "none" returns it unfingered.
+    requires the file's own complete fingering, "robot" re-estimates every finger for this
+    robot hand (keeping the song's hands), "none" returns it unfingered.
 
     Raises:
         UnknownSongError: not a built-in name and does not look like a path (close matches are
@@ -327,13 +328,13 @@ def load_song(
     song = _load_song(name_or_path, out_of_range)
     if fingering is None or fingering == "none":
         return song
-    if fingering == "auto" and not song.has_full_fingering:
+    if (fingering == "auto" and not song.has_full_fingering) or fingering == "robot":
         hints = None
         if not isinstance(name_or_path, Song):
             path = Path(os.fspath(name_or_path))
             if path.suffix.lower() in (".mid", ".midi") and path.is_file():
                 hints = midi_hand_hints(path, song)
-        return assign_fingering(song, hands=hints)
+        return assign_fingering(song, keep_existing=fingering == "auto", hands=hints)
     return ensure_fingering(song, fingering)
 
 
