@@ -187,7 +187,8 @@ _ORIGINAL_SONGS: dict[str, tuple[str, Callable[[], list[Note]]]] = {
 
 
 def _original_name(name: str) -> str | None:
-    """The ``robopianist-debug`` song ``name`` names (its own name or environment id)."""
+    """The ``robopianist-debug`` song that ``name`` gives (by its own name or its environment
+    id), or None."""
     if name.startswith(_ORIGINAL_ID_PREFIX) and name.endswith("-v0"):
         name = name[len(_ORIGINAL_ID_PREFIX) : -len("-v0")]
     return name if name in _ORIGINAL_SONGS else None
