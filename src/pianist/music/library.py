@@ -86,9 +86,10 @@ def _scale_up_down(tonic: str, hand: str) -> list[Note]:
     return notes
 
 
-def _scale_song(tonic: str, both_hands: bool) -> list[Note]:
-    """Right hand from ``tonic`` in octave 4; with ``both_hands`` the left an octave lower."""
-    notes = _scale_up_down(f"{tonic}4", RIGHT)
+def _scale_song(tonic: str, both_hands: bool, right_octave: int = 4) -> list[Note]:
+    """Right hand from ``tonic`` in ``right_octave``; with ``both_hands`` the left from octave 3
+    (an octave lower, or two for the original's songs with ``right_octave`` 5)."""
+    notes = _scale_up_down(f"{tonic}{right_octave}", RIGHT)
     if both_hands:
         notes += _scale_up_down(f"{tonic}3", LEFT)
     return notes
@@ -131,14 +132,6 @@ def _original_twinkle() -> list[Note]:
     return _melody(pitches, beats, fingers, RIGHT)
 
 
-def _original_scale(tonic: str, both_hands: bool) -> list[Note]:
-    """The original's scales: the right hand from octave 5, the left from octave 3."""
-    notes = _scale_up_down(f"{tonic}5", RIGHT)
-    if both_hands:
-        notes += _scale_up_down(f"{tonic}3", LEFT)
-    return notes
-
-
 # The original's progression: root-position right-hand triads (fingers 1 3 5) that jump from
 # chord to chord, over a left-hand bass. Entries: (triad's root, bass name, left finger).
 _ORIGINAL_CHORDS = (("C4", "C3", 1), ("F4", "F2", 4), ("G4", "G2", 3), ("C4", "C3", 1))
@@ -164,19 +157,19 @@ _ORIGINAL_SONGS: dict[str, tuple[str, Callable[[], list[Note]]]] = {
     ),
     "CMajorScaleOneHand": (
         "the original's C major scale, right hand from C5, 15 notes, 7.5 s",
-        lambda: _original_scale("C", both_hands=False),
+        lambda: _scale_song("C", both_hands=False, right_octave=5),
     ),
     "CMajorScaleTwoHands": (
         "the original's C major scale, hands two octaves apart (C5 / C3), 30 notes, 7.5 s",
-        lambda: _original_scale("C", both_hands=True),
+        lambda: _scale_song("C", both_hands=True, right_octave=5),
     ),
     "DMajorScaleOneHand": (
         "the original's D major scale, right hand from D5, 15 notes, 7.5 s",
-        lambda: _original_scale("D", both_hands=False),
+        lambda: _scale_song("D", both_hands=False, right_octave=5),
     ),
     "DMajorScaleTwoHands": (
         "the original's D major scale, hands two octaves apart (D5 / D3), 30 notes, 7.5 s",
-        lambda: _original_scale("D", both_hands=True),
+        lambda: _scale_song("D", both_hands=True, right_octave=5),
     ),
     "CMajorChordProgressionTwoHands": (
         "the original's C major progression: root-position triads that jump, over C3 F2 G2 C3, "
