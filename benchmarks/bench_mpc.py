@@ -108,7 +108,7 @@ def main() -> None:
         wall = sum(r["wall_s"] for r in mine)
         print(f"mean F1 {f1:.3f}  overall rtf {sim / wall:.3f}  {name}")
     if args.json:
-        from pianist.eval.episode import write_json_atomic
+        from pianist.files import write_json_atomic
 
         write_json_atomic({"rows": rows, "args": vars(args)}, Path(args.json))
 

@@ -170,7 +170,7 @@ class Play:
         from pianist.control import make_controller
         from pianist.env import PianoEnv
         from pianist.eval import run_episode
-        from pianist.eval.episode import save_npy_atomic, write_json_atomic
+        from pianist.files import save_npy_atomic, write_json_atomic
         from pianist.music import load_song, write_midi
 
         # Everything that can be checked before the (long) episode is checked first.
@@ -349,7 +349,7 @@ class Eval:
     def run(self) -> None:
         from pianist.agents import PolicyController
         from pianist.eval import run_episode
-        from pianist.eval.episode import save_npy_atomic, write_json_atomic
+        from pianist.files import save_npy_atomic, write_json_atomic
         from pianist.music import write_midi
 
         controller = PolicyController(self.run_dir)

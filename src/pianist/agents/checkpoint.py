@@ -21,9 +21,7 @@ usable.
 from __future__ import annotations
 
 import json
-import os
 import shutil
-import tempfile
 import zipfile
 from pathlib import Path
 from typing import Any
@@ -31,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from pianist.agents.config import TrainConfig
-from pianist.eval.episode import write_json_atomic
+from pianist.files import atomic_dir, write_json_atomic
 
 CHECKPOINTS = "checkpoints"
 LATEST = "latest.json"
@@ -54,8 +52,8 @@ def save_checkpoint(
     root = run_dir / CHECKPOINTS
     root.mkdir(parents=True, exist_ok=True)
     name = f"step_{step:09d}"
-    tmp = Path(tempfile.mkdtemp(dir=root, prefix=f".{name}."))
-    try:
+    # A checkpoint of this step left by a run that crashed after it is replaced whole.
+    with atomic_dir(root / name) as tmp:
         if agent_leaves is not None:
             leaves = {f"leaf_{i:04d}": a for i, a in enumerate(agent_leaves)}
             np.savez(tmp / "agent.npz", **leaves)
@@ -65,21 +63,12 @@ def save_checkpoint(
         if replay_arrays is not None:
             np.savez(tmp / "replay.npz", **replay_arrays)
         (tmp / "state.json").write_text(json.dumps({**state, "step": step}, indent=1) + "\n")
-        for f in tmp.iterdir():
-            os.chmod(f, 0o644)
-        os.chmod(tmp, 0o755)
-        final = root / name
-        if final.exists():  # a checkpoint of this step from a run that crashed after it
-            shutil.rmtree(final)
-        os.replace(tmp, final)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
+    final = root / name
     write_json_atomic({"dir": name, "step": step}, root / LATEST)
     older = sorted(p for p in root.glob("step_*") if p.is_dir() and p.name != name)
     for old in older[: max(0, len(older) - (keep - 1))]:
         shutil.rmtree(old, ignore_errors=True)
-    for stale in root.glob(".step_*"):  # temporary directories of a crashed save
+    for stale in root.glob(".step_*"):  # temporary folders of a crashed save
         shutil.rmtree(stale, ignore_errors=True)
     return final
 

@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import shutil
 import time
 from collections.abc import Callable
@@ -34,7 +33,7 @@ from pianist.agents.envs import Featurizer, make_agent_env
 from pianist.agents.policy import NumpyActor, PolicyController, read_run_config
 from pianist.agents.replay import ReplayBuffer
 from pianist.eval import run_episode
-from pianist.eval.episode import write_json_atomic
+from pianist.files import write_json_atomic, write_text_atomic
 
 EVAL_KEYS = ("precision", "recall", "f1", "sustain_f1", "return")
 
@@ -320,6 +319,4 @@ def _truncate_log(path: Path, step: int) -> None:
                 kept.append(line)
         except (json.JSONDecodeError, KeyError, TypeError):
             continue  # a line cut by the crash
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text("\n".join(kept) + "\n" if kept else "")
-    os.replace(tmp, path)
+    write_text_atomic("\n".join(kept) + "\n" if kept else "", path)

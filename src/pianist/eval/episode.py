@@ -2,12 +2,7 @@
 
 from __future__ import annotations
 
-import io
-import json
-import os
-import tempfile
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -109,27 +104,3 @@ class Episode:
         if pedal_on is not None and self.end_time_s > pedal_on:
             sustain.append((pedal_on, self.end_time_s))
         return Song(notes=tuple(notes), sustain=tuple(sustain), name=name)
-
-
-def write_json_atomic(data: dict[str, Any], path: str | os.PathLike[str]) -> None:
-    """Write ``data`` as JSON to ``path`` via a temporary file and a rename."""
-    _write_atomic(Path(path), json.dumps(data, indent=2).encode() + b"\n")
-
-
-def save_npy_atomic(array: np.ndarray, path: str | os.PathLike[str]) -> None:
-    """``np.save`` to ``path`` via a temporary file and a rename."""
-    buffer = io.BytesIO()
-    np.save(buffer, array)
-    _write_atomic(Path(path), buffer.getvalue())
-
-
-def _write_atomic(path: Path, data: bytes) -> None:
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-        os.chmod(tmp, 0o644)  # mkstemp makes the file private; results are ordinary files
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise

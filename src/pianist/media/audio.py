@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from pianist.media._files import atomic_output
+from pianist.files import atomic_path
 from pianist.media.errors import MediaError
 
 if TYPE_CHECKING:
@@ -175,7 +175,7 @@ def write_wav(
     sample_rate = _check_sample_rate(sample_rate)
     pcm = np.round(np.clip(samples, -1.0, 1.0) * 32767.0).astype("<i2")
     path = Path(path)
-    with atomic_output(path, suffix=".wav") as tmp:
+    with atomic_path(path, suffix=".wav", error=MediaError) as tmp:
         try:
             with wave.open(str(tmp), "wb") as w:
                 w.setnchannels(pcm.shape[1])

@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from pianist.media._files import atomic_output
+from pianist.files import atomic_path
 from pianist.media.errors import MediaError
 
 if TYPE_CHECKING:
@@ -143,7 +143,7 @@ def plot_pianoroll(
     if title:
         fig.suptitle(title)
 
-    with atomic_output(path, suffix=".png") as tmp:
+    with atomic_path(path, suffix=".png", error=MediaError) as tmp:
         fig.savefig(tmp, format="png")
     return counts
 

@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from pianist.media._files import atomic_output
+from pianist.files import atomic_path
 from pianist.media.errors import MediaError
 
 if TYPE_CHECKING:
@@ -140,7 +140,7 @@ def render_episode(
             if audio is not None:
                 audio_path = Path(workdir) / "audio.wav"
                 _write_track(audio, len(times) / fps, sample_rate, audio_path)
-            with atomic_output(path, suffix=".mp4") as tmp:
+            with atomic_path(path, suffix=".mp4", error=MediaError) as tmp:
                 _encode(frames(), tmp, width, height, fps, audio_path, len(times), progress)
     finally:
         renderer.close()

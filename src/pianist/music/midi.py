@@ -27,8 +27,9 @@ from typing import Literal
 
 import mido
 
+from pianist.files import write_bytes_atomic
 from pianist.music.errors import MidiFileError, OutOfRangeError, one_line
-from pianist.music.fileio import require_file, write_atomic
+from pianist.music.fileio import require_file
 from pianist.music.notes import Note, Song
 from pianist.music.pitch import HIGHEST_PITCH, LOWEST_PITCH
 
@@ -242,4 +243,4 @@ def write_midi(song: Song, path: str | os.PathLike[str], *, midi_type: int = 1) 
     """
     buffer = io.BytesIO()
     song_to_midi(song, midi_type=midi_type).save(file=buffer)
-    write_atomic(Path(path), buffer.getvalue(), MidiFileError, "MIDI file")
+    write_bytes_atomic(buffer.getvalue(), path, error=MidiFileError)

@@ -19,8 +19,9 @@ import os
 from pathlib import Path
 from typing import Literal
 
+from pianist.files import write_text_atomic
 from pianist.music.errors import MusicError, OutOfRangeError, PigFormatError, one_line
-from pianist.music.fileio import require_file, write_atomic
+from pianist.music.fileio import require_file
 from pianist.music.notes import LEFT, RIGHT, Note, Song
 from pianist.music.pitch import HIGHEST_PITCH, LOWEST_PITCH, name_to_pitch, pitch_to_name
 
@@ -152,4 +153,4 @@ def write_pig(song: Song, path: str | os.PathLike[str]) -> None:
         PigFormatError: a note has no finger, or the file cannot be written.
     """
     text = song_to_pig(song)
-    write_atomic(Path(path), text.encode("utf-8"), PigFormatError, "PIG file")
+    write_text_atomic(text, path, error=PigFormatError)

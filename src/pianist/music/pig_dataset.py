@@ -29,8 +29,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from pianist.files import write_text_atomic
 from pianist.music.errors import MusicError, UnknownSongError, one_line
-from pianist.music.fileio import write_atomic
 from pianist.music.fingering import assign_fingering
 from pianist.music.notes import Song
 from pianist.music.pig import read_pig, write_pig
@@ -280,12 +280,7 @@ def import_pig(
         "etude_12": [n for n in ETUDE_12 if n in names],
         "pieces": [p.__dict__ for p in pieces],
     }
-    write_atomic(
-        dest / INDEX_NAME,
-        (json.dumps(index, indent=1) + "\n").encode("utf-8"),
-        PigDatasetError,
-        "PIG index",
-    )
+    write_text_atomic(json.dumps(index, indent=1) + "\n", dest / INDEX_NAME, error=PigDatasetError)
     return PigImportReport(
         dest_dir=dest,
         pieces=pieces,
