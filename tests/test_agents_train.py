@@ -6,7 +6,7 @@ import json
 import numpy as np
 import pytest
 
-from pianist.agents import PolicyController, get_preset, train
+from pianist.agents import PolicyController, get_preset, rundir, train
 from pianist.agents.checkpoint import latest_checkpoint
 from pianist.agents.envs import TARGET_SCALE, Featurizer, make_agent_env
 from pianist.agents.replay import ReplayBuffer
@@ -166,3 +166,38 @@ def test_replay_keeps_episodes_apart_across_the_wrap():
     restored.load_arrays(buffer.state_arrays())
     again = restored.sample(np.random.default_rng(0), 64)
     np.testing.assert_array_equal(again.obs, batch.obs)
+
+
+def test_the_run_directory_layout(run_dir):
+    assert rundir.config_path(run_dir) == run_dir / "config.json"
+    assert rundir.log_path(run_dir) == run_dir / "log.jsonl"
+    assert rundir.latest_pointer(run_dir) == run_dir / "checkpoints" / "latest.json"
+    assert rundir.checkpoint_name(STEPS) == f"step_{STEPS:09d}"
+    assert rundir.holds_run(run_dir) and (rundir.best_dir(run_dir) / "config.json").is_file()
+    assert rundir.read_run_config(rundir.best_dir(run_dir)) == rundir.read_run_config(run_dir)
+
+
+def test_truncating_the_log_keeps_rows_up_to_the_checkpoint(tmp_path):
+    with rundir.RunLog(tmp_path) as log:
+        for step in (10, 20, 30):
+            log.write({"kind": "episode", "step": step})
+    with rundir.log_path(tmp_path).open("a") as f:
+        f.write('{"kind": "eval", "st')  # a row cut by a crash
+    rundir.truncate_log(tmp_path, 20)
+    rows = [json.loads(x) for x in rundir.log_path(tmp_path).read_text().splitlines()]
+    assert [r["step"] for r in rows] == [10, 20]
+    rundir.truncate_log(tmp_path, 0)
+    assert rundir.log_path(tmp_path).read_text() == ""
+    rundir.remove_log(tmp_path)
+    rundir.truncate_log(tmp_path, 0)  # no log: nothing to do
+    assert not rundir.log_path(tmp_path).exists()
+
+
+def test_unusable_run_configurations_are_clear_errors(tmp_path):
+    with pytest.raises(FileNotFoundError, match="not found"):
+        rundir.read_run_config(tmp_path / "nothing")
+    with pytest.raises(FileNotFoundError, match="no config.json"):
+        rundir.read_run_config(tmp_path)
+    rundir.write_run_config(tmp_path, {"song": SONG})
+    with pytest.raises(ValueError, match="not a valid run configuration"):
+        rundir.read_run_config(tmp_path)

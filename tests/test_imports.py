@@ -51,3 +51,60 @@ def test_make_env_from_the_top_level_api():
     env = pianist.make_env("c-major-chords", physics="fast", lookahead=2)
     obs, _ = env.reset(seed=0)
     assert obs["goal"].shape == (3, 89)
+
+
+def _module_name(path: Path) -> str:
+    parts = ("pianist", *path.relative_to(PACKAGE).with_suffix("").parts)
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def _imported_modules(path: Path, modules: set[str]) -> set[str]:
+    """The ``pianist`` modules ``path`` imports, at module level or inside functions.
+
+    ``from pianist.x import y`` is an import of module ``pianist.x.y`` when that is a module,
+    else of ``pianist.x``.
+    """
+    name = _module_name(path)
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    found = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            found.update(a.name for a in node.names if a.name.split(".")[0] == "pianist")
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:  # relative: resolve against this module's package
+                anchor = package.split(".")[: len(package.split(".")) - (node.level - 1)]
+                base = ".".join([*anchor, *([base] if base else [])])
+            if base.split(".")[0] != "pianist":
+                continue
+            for alias in node.names:
+                child = f"{base}.{alias.name}"
+                found.add(child if child in modules else base)
+    return found
+
+
+def test_no_import_cycles_between_modules():
+    paths = {_module_name(p): p for p in PACKAGE.rglob("*.py")}
+    graph = {}
+    for name, path in paths.items():
+        edges = _imported_modules(path, set(paths)) - {name}
+        if path.name == "__init__.py":
+            # A package's __init__ may gather its own submodules, which import it in turn.
+            edges = {m for m in edges if not m.startswith(name + ".")}
+        graph[name] = sorted(m for m in edges if m in paths)
+    cycles = []
+    state: dict[str, int] = {}  # 1: on the current path, 2: done
+
+    def visit(module: str, trail: list[str]) -> None:
+        state[module] = 1
+        for target in graph[module]:
+            if state.get(target) == 1:
+                cycles.append(" -> ".join([*trail[trail.index(target) :], target]))
+            elif target not in state:
+                visit(target, [*trail, target])
+        state[module] = 2
+
+    for module in sorted(graph):
+        if module not in state:
+            visit(module, [module])
+    assert not cycles, "import cycles:\n" + "\n".join(cycles)

@@ -302,7 +302,7 @@ class Train:
 
     def run(self) -> None:
         from pianist.agents import PRESETS, train
-        from pianist.agents.policy import read_run_config
+        from pianist.agents.rundir import read_run_config
 
         _require_jax()
         if self.resume is not None:

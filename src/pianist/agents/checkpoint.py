@@ -1,17 +1,15 @@
 """Checkpoints of a training run: agent state, replay buffer, counters and RNG states.
 
-Layout of a run directory::
+A checkpoint (where it lives: :mod:`pianist.agents.rundir`) is a folder holding::
 
-    config.json                   the resolved configuration (song, steps, TrainConfig)
-    log.jsonl                     one JSON object per line: evaluations, episodes, losses
-    checkpoints/latest.json       {"dir": "step_000012345", "step": 12345}
-    checkpoints/step_000012345/   agent.npz (every leaf of the agent state), policy.npz (the
-                                  actor's layers, readable without JAX), replay.npz, state.json
-    best/                         the policy with the best evaluation F1 so far, as a run
-                                  directory of its own (config.json, checkpoints/ holding only
-                                  policy.npz and state.json with the evaluation): it plays and
-                                  evaluates like any run (``pianist eval RUN/best SONG``) but
-                                  cannot be resumed
+    agent.npz    every leaf of the agent state (for resuming)
+    policy.npz   the actor's layers, readable without JAX
+    replay.npz   the replay buffer (for resuming)
+    state.json   the loop's counters and RNG states, and the step
+
+A run's ``best/`` folder is a run directory of its own (config.json, checkpoints/ holding only
+policy.npz and state.json with the evaluation): it plays and evaluates like any run
+(``pianist eval RUN/best SONG``) but cannot be resumed.
 
 A checkpoint directory is written under a temporary name and renamed when complete, then
 ``latest.json`` is replaced atomically: a crash at any point leaves the previous checkpoint
@@ -28,11 +26,10 @@ from typing import Any
 
 import numpy as np
 
+from pianist.agents import rundir
 from pianist.agents.config import TrainConfig
 from pianist.files import atomic_dir, write_json_atomic
 
-CHECKPOINTS = "checkpoints"
-LATEST = "latest.json"
 _LOAD_ERRORS = (ValueError, OSError, EOFError, KeyError, zipfile.BadZipFile)
 
 
@@ -49,31 +46,29 @@ def save_checkpoint(
 
     ``agent_leaves`` and ``replay_arrays`` None: a policy-only checkpoint (not resumable).
     """
-    root = run_dir / CHECKPOINTS
+    root = rundir.checkpoints_dir(run_dir)
     root.mkdir(parents=True, exist_ok=True)
-    name = f"step_{step:09d}"
+    name = rundir.checkpoint_name(step)
     # A checkpoint of this step left by a run that crashed after it is replaced whole.
     with atomic_dir(root / name) as tmp:
+        # allow_pickle=False: plain arrays only, as _load_npz reads them back.
         if agent_leaves is not None:
             leaves = {f"leaf_{i:04d}": a for i, a in enumerate(agent_leaves)}
-            np.savez(tmp / "agent.npz", **leaves)
+            np.savez(tmp / "agent.npz", allow_pickle=False, **leaves)
         layers = {f"w{i}": w for i, (w, _) in enumerate(actor_layers)}
         layers.update({f"b{i}": b for i, (_, b) in enumerate(actor_layers)})
-        np.savez(tmp / "policy.npz", **layers)
+        np.savez(tmp / "policy.npz", allow_pickle=False, **layers)
         if replay_arrays is not None:
-            np.savez(tmp / "replay.npz", **replay_arrays)
+            np.savez(tmp / "replay.npz", allow_pickle=False, **replay_arrays)
         (tmp / "state.json").write_text(json.dumps({**state, "step": step}, indent=1) + "\n")
     final = root / name
-    write_json_atomic({"dir": name, "step": step}, root / LATEST)
+    write_json_atomic({"dir": name, "step": step}, rundir.latest_pointer(run_dir))
     older = sorted(p for p in root.glob("step_*") if p.is_dir() and p.name != name)
     for old in older[: max(0, len(older) - (keep - 1))]:
         shutil.rmtree(old, ignore_errors=True)
     for stale in root.glob(".step_*"):  # temporary folders of a crashed save
         shutil.rmtree(stale, ignore_errors=True)
     return final
-
-
-BEST = "best"
 
 
 def save_best(
@@ -86,24 +81,23 @@ def save_best(
 
     ``evaluation``: the metrics that made it the best (stored in its state.json).
     """
-    best = run_dir / BEST
+    best = rundir.best_dir(run_dir)
     best.mkdir(exist_ok=True)
-    config = json.loads((run_dir / "config.json").read_text())
-    write_json_atomic(config, best / "config.json")
+    rundir.write_run_config(best, json.loads(rundir.config_path(run_dir).read_text()))
     return save_checkpoint(best, step, None, actor_layers, None, {"eval": evaluation}, keep=1)
 
 
 def best_evaluation(run_dir: str | Path) -> dict[str, Any] | None:
     """The evaluation stored with ``run_dir/best`` (None if the run has kept no best yet)."""
-    best = Path(run_dir) / BEST
-    if not (best / CHECKPOINTS / LATEST).is_file():
+    best = rundir.best_dir(run_dir)
+    if not rundir.latest_pointer(best).is_file():
         return None
     return {**load_state(latest_checkpoint(best))["eval"]}
 
 
 def latest_checkpoint(run_dir: str | Path) -> Path:
     """The directory of the newest complete checkpoint of ``run_dir``."""
-    pointer = Path(run_dir) / CHECKPOINTS / LATEST
+    pointer = rundir.latest_pointer(run_dir)
     if not pointer.is_file():
         raise FileNotFoundError(f"no checkpoint in {run_dir} (missing {pointer})")
     try:
@@ -164,9 +158,7 @@ def load_policy(
     run_dir: str | Path,
 ) -> tuple[TrainConfig, list[tuple[np.ndarray, np.ndarray]], int]:
     """(config, actor layers [(W, b), ...], step) of the newest checkpoint of a run."""
-    from pianist.agents.policy import read_run_config
-
-    config = TrainConfig.from_dict(read_run_config(run_dir)["config"])
+    config = TrainConfig.from_dict(rundir.read_run_config(run_dir)["config"])
     checkpoint = latest_checkpoint(run_dir)
     data = _load_npz(checkpoint / "policy.npz")
     n = len(data) // 2

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any
 
@@ -117,18 +116,3 @@ class PolicyController:
             raise RuntimeError("call reset(env, seed) first")
         x = self._features(observation)
         return self._features.env_action(self.actor.mean_action(x).astype(np.float32))
-
-
-def read_run_config(run_dir: str | Path) -> dict[str, Any]:
-    """``run_dir/config.json`` as a dict (song, steps, config); clear errors when unusable."""
-    path = Path(run_dir) / "config.json"
-    if not Path(run_dir).is_dir():
-        raise FileNotFoundError(f"run directory not found: {run_dir}")
-    if not path.is_file():
-        raise FileNotFoundError(f"{run_dir} is not a training run (no config.json)")
-    try:
-        data = json.loads(path.read_text())
-        TrainConfig.from_dict(data["config"])
-    except (json.JSONDecodeError, KeyError, TypeError) as exc:
-        raise ValueError(f"{path} is not a valid run configuration ({exc})") from None
-    return data
