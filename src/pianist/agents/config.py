@@ -106,7 +106,7 @@ class TaskConfig:
 
     def env_options(self, song_hands: tuple[str, ...] = ()) -> dict[str, Any]:
         """Keyword options of :class:`pianist.env.PianoEnv` (``song_hands``: the song's hands)."""
-        hands = self.hands
+        hands: str = self.hands
         if hands == "song":
             hands = song_hands[0] if len(song_hands) == 1 else "both"
         return {

@@ -26,18 +26,21 @@ HAND_FINGERS = {"right": range(0, 5), "left": range(5, 10)}
 
 
 class AgentEnv(gym.Wrapper):
-    """A PianoEnv with the observation entries of :class:`TaskConfig` added (module docstring).
+    """A PianoEnv, or a wrapper of one, with the observation entries of :class:`TaskConfig`
+    added (module docstring).
 
     The action is the environment's. ``config``, ``data``, ``model``, ``goal``, ``scene``,
     ``step_index`` and ``num_steps`` are the wrapped environment's, so rollouts and
     controllers written for :class:`PianoEnv` work on it.
     """
 
-    def __init__(self, env: PianoEnv, task: TaskConfig) -> None:
+    def __init__(self, env: gym.Env, task: TaskConfig) -> None:
         super().__init__(env)
         self.task = task
         base = env.unwrapped
-        A = env.action_space.shape[0]
+        self._action_shape = _box(env.action_space).shape
+        A = self._action_shape[0]
+        assert isinstance(env.observation_space, gym.spaces.Dict)  # as a PianoEnv's
         spaces = dict(env.observation_space.spaces)
         if task.action_reward_observation:
             spaces["prev_action"] = gym.spaces.Box(-1.0, 1.0, (A,), np.float32)
@@ -77,13 +80,13 @@ class AgentEnv(gym.Wrapper):
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         obs, info = self.env.reset(seed=seed, options=options)
-        zero = np.zeros(self.action_space.shape, np.float32)
+        zero = np.zeros(self._action_shape, np.float32)
         return self._augment(obs, zero, 0.0), info
 
     def step(self, action: np.ndarray):
         obs, reward, terminated, truncated, info = self.env.step(action)
         action = np.clip(np.asarray(action, np.float32), -1.0, 1.0)
-        return self._augment(obs, action, reward), reward, terminated, truncated, info
+        return self._augment(obs, action, float(reward)), reward, terminated, truncated, info
 
     def _augment(self, obs: dict[str, np.ndarray], action: np.ndarray, reward: float):
         if self.task.action_reward_observation:
@@ -101,6 +104,12 @@ class AgentEnv(gym.Wrapper):
             out[..., 1:] = np.where(due[..., None], delta, 0.0)
             obs["finger_targets"] = out
         return obs
+
+
+def _box(space: gym.spaces.Space) -> gym.spaces.Box:
+    """``space``, a Box (as every action and observation entry of a PianoEnv is)."""
+    assert isinstance(space, gym.spaces.Box), space
+    return space
 
 
 def song_hands(song: Song | GoalFrames | str | Path) -> tuple[str, ...]:
@@ -130,12 +139,14 @@ class Featurizer:
     def __init__(self, env: gym.Env, task: TaskConfig) -> None:
         self.task = task
         space = env.observation_space
+        assert isinstance(space, gym.spaces.Dict)  # as a PianoEnv's or an AgentEnv's
         self.keys = sorted(space.spaces)
-        goal_rows = space["goal"].shape[0]
+        goal_shape = _box(space["goal"]).shape
+        goal_rows = goal_shape[0]
         self.goal_rows = min(task.goal_frames_observed or goal_rows, goal_rows)
-        self.action_dim = int(env.action_space.shape[0])
+        self.action_dim = int(_box(env.action_space).shape[0])
         sizes = [
-            self.goal_rows * space["goal"].shape[1] if k == "goal" else int(np.prod(space[k].shape))
+            self.goal_rows * goal_shape[1] if k == "goal" else int(np.prod(_box(space[k]).shape))
             for k in self.keys
         ]
         self.obs_dim = int(sum(sizes)) + (self.action_dim if task.residual else 0)

@@ -10,6 +10,7 @@ from the actor's batch entropy. Everything is float32.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from functools import lru_cache, partial
 from typing import Any
@@ -122,12 +123,13 @@ class SAC:
         c = self.config
         k_next, k_sub, k_target, k_drop = jax.random.split(key, 4)
         mean, log_std = self.actor_def.apply({"params": state.actor}, batch.next_obs)
-        next_action, next_log_prob = tanh_gaussian_sample(mean, log_std, k_next)
+        # flax annotates apply's result as maybe (output, variables): only with mutable=.
+        next_action, next_log_prob = tanh_gaussian_sample(mean, log_std, k_next)  # type: ignore[arg-type]
         target_params = state.target_critic
         if c.num_min_qs is not None and c.num_min_qs < c.num_qs:
             chosen = jax.random.choice(k_sub, c.num_qs, (c.num_min_qs,), replace=False)
             target_params = jax.tree_util.tree_map(lambda p: p[chosen], target_params)
-        next_q = self.target_def.apply(
+        next_q = self.target_def.apply(  # type: ignore[union-attr]  # flax: as above
             {"params": target_params}, batch.next_obs, next_action, True, rngs={"dropout": k_target}
         ).min(axis=0)
         bootstrap = c.discount * batch.discount
@@ -151,8 +153,9 @@ class SAC:
         """
         k_action, k_drop = jax.random.split(key)
         mean, log_std = self.actor_def.apply({"params": actor}, batch.obs)
-        action, log_prob = tanh_gaussian_sample(mean, log_std, k_action)
-        q = self.critic_def.apply(
+        # flax annotates apply's result as maybe (output, variables): only with mutable=.
+        action, log_prob = tanh_gaussian_sample(mean, log_std, k_action)  # type: ignore[arg-type]
+        q = self.critic_def.apply(  # type: ignore[union-attr]  # flax: as above
             {"params": state.critic}, batch.obs, action, True, rngs={"dropout": k_drop}
         ).mean(axis=0)
         size = jnp.sum(jnp.tanh(mean) ** 2, axis=-1)
@@ -175,7 +178,9 @@ class SAC:
         updates, critic_opt = self.critic_tx.update(grads, state.critic_opt, state.critic)
         critic = optax.apply_updates(state.critic, updates)
         target = optax.incremental_update(critic, state.target_critic, self.config.tau)
-        state = state.replace(critic=critic, critic_opt=critic_opt, target_critic=target)
+        state = dataclasses.replace(
+            state, critic=critic, critic_opt=critic_opt, target_critic=target
+        )
 
         (a_loss, a_terms), grads = jax.value_and_grad(self.actor_loss, has_aux=True)(
             state.actor, state, batch, k_actor
@@ -188,7 +193,8 @@ class SAC:
         updates, temp_opt = self.temp_tx.update(grad, state.temp_opt, state.log_temp)
         log_temp = optax.apply_updates(state.log_temp, updates)
 
-        state = state.replace(
+        state = dataclasses.replace(
+            state,
             actor=actor,
             actor_opt=actor_opt,
             log_temp=log_temp,

@@ -23,7 +23,7 @@ class RandomController:
     """Uniform random actions in [-1, 1] from a seeded generator."""
 
     def reset(self, env: gym.Env, seed: int | None = None) -> None:
-        self._shape = env.action_space.shape
+        self._shape = _action_shape(env)
         self._rng = np.random.default_rng(seed)
 
     def act(self, observation: dict[str, np.ndarray]) -> np.ndarray:
@@ -34,7 +34,7 @@ class ZeroController:
     """Every actuator at the middle of its range (action 0), the pedal up (action -1)."""
 
     def reset(self, env: gym.Env, seed: int | None = None) -> None:
-        self._action = np.zeros(env.action_space.shape, dtype=np.float32)
+        self._action = np.zeros(_action_shape(env), dtype=np.float32)
         self._action[-1] = -1.0
 
     def act(self, observation: dict[str, np.ndarray]) -> np.ndarray:
@@ -82,7 +82,7 @@ class ReplayController:
             raise ValueError(f"replayed actions must be a (T, A) array, not {self.actions.shape}")
 
     def reset(self, env: gym.Env, seed: int | None = None) -> None:
-        expected = env.action_space.shape[0]
+        expected = _action_shape(env)[0]
         if self.actions.shape[1] != expected:
             raise ValueError(
                 f"replayed actions have {self.actions.shape[1]} dimensions, "
@@ -96,6 +96,13 @@ class ReplayController:
         action = self.actions[self._t]
         self._t += 1
         return action
+
+
+def _action_shape(env: gym.Env) -> tuple[int, ...]:
+    """The shape of ``env``'s actions (a Box, as a PianoEnv's)."""
+    shape = env.action_space.shape
+    assert shape is not None, f"{env.action_space} has no shape"
+    return shape
 
 
 def make_controller(spec: str, **kwargs: Any) -> Controller:

@@ -222,7 +222,7 @@ class IKPlanner:
         for hand in self.hands:
             hand.plan_forearm(goal, self.key_point, cfg.lazy_m, cfg.skip_out_of_reach)
         if len(self.hands) == 2:
-            _keep_forearms_apart(*self.hands, cfg.forearm_separation_m)
+            _keep_forearms_apart(self.hands[0], self.hands[1], cfg.forearm_separation_m)
         for hand in self.hands:
             hand.plan_commands(m, self.dt, cfg)
 
@@ -502,6 +502,7 @@ class _Hand:
         state = np.array([data.qpos[self.tx_qpos], data.qvel[self.tx_dof]])
         ctrl[self.tx_actuator] = self.tx_servo.command(state, self.tx_path[t + 1])
         if self.tz_actuator is not None:
+            assert self.tz_qpos is not None and self.tz_range is not None  # set with tz_actuator
             # The keys push the hand up (about a centimetre under a chord): pressing harder the
             # further it has risen stiffens the slide's servo against them.
             rise = data.qpos[self.tz_qpos] - cfg.hand_height_m
@@ -548,7 +549,7 @@ class _Hand:
                 finger = goal.fingers[frame, key] - self.finger_offset
                 if not 0 <= finger < FINGERS_PER_HAND or active[finger]:
                     continue
-                point = self._press_point(planner, key, finger)
+                point = self._press_point(planner, int(key), finger)
                 top = planner.key_top_z[key] + radius
                 targets[finger] = point
                 active[finger] = True
@@ -608,7 +609,7 @@ class _Hand:
         for key in np.flatnonzero(goal.keys[frame] & ~self.skip[frame]):
             finger = goal.fingers[frame, key] - self.finger_offset
             if 0 <= finger < FINGERS_PER_HAND and not active[finger]:
-                targets[finger] = self._press_point(planner, key, finger)
+                targets[finger] = self._press_point(planner, int(key), finger)
                 targets[finger, 2] = planner.key_top_z[key] + height
                 active[finger] = True
 
@@ -632,7 +633,7 @@ class _Hand:
             mujoco.mj_kinematics(m, scratch)
             mujoco.mj_comPos(m, scratch)  # mj_jacSite reads cdof and subtree centres
             origin = scratch.xpos[self.forearm_body]
-            for f in np.flatnonzero(active):
+            for f in np.flatnonzero(active).tolist():
                 finger = self.fingers[f]
                 error = targets[f] - (scratch.site_xpos[finger.site] - origin)
                 mujoco.mj_jacSite(m, scratch, self.jacp, None, finger.site)
@@ -649,7 +650,7 @@ class _Hand:
             return
         mujoco.mj_kinematics(m, scratch)
         mujoco.mj_comPos(m, scratch)
-        for f in np.flatnonzero(self.pressing):
+        for f in np.flatnonzero(self.pressing).tolist():
             finger = self.fingers[f]
             amount = cfg.thumb_push_rad if f == 0 else cfg.finger_push_rad
             mujoco.mj_jacSite(m, scratch, self.jacp, None, finger.site)
@@ -665,6 +666,9 @@ class _Hand:
 
 class _Finger:
     """The actuated joints of one finger: actuator ids, limits, how to set and differentiate."""
+
+    lift: np.ndarray
+    """The lifted posture (dof,), chosen by :meth:`_Hand.choose_lift_posture`."""
 
     def __init__(self, m, actuators: list[int], site: int) -> None:
         self.actuators = np.asarray(actuators, dtype=int)

@@ -202,22 +202,25 @@ class PianoEnv(gym.Env):
 
     def _setup_spaces(self) -> None:
         L = self.config.lookahead
-        unit = {"low": 0.0, "high": 1.0, "dtype": np.float32}
+        f32 = np.float32
+        unit = (0.0, 1.0)  # (low, high)
         # Generous finite bounds (joint angles and slides in rad/m, positions in m): the
         # instability check raises long before a state could leave them.
-        joints = {"low": -2 * np.pi, "high": 2 * np.pi, "dtype": np.float32}
-        position = {"low": -5.0, "high": 5.0, "dtype": np.float32}
-        spaces: dict[str, gym.spaces.Box] = {
-            "goal": gym.spaces.Box(shape=(L + 1, C.NUM_KEYS + 1), **unit),
-            "fingers_due": gym.spaces.Box(shape=(10,), **unit),
-            "piano_keys": gym.spaces.Box(shape=(C.NUM_KEYS,), **unit),
-            "piano_sustain": gym.spaces.Box(shape=(1,), **unit),
+        joints = (-2 * np.pi, 2 * np.pi)
+        position = (-5.0, 5.0)
+        spaces: dict[str, gym.spaces.Space] = {
+            "goal": gym.spaces.Box(*unit, shape=(L + 1, C.NUM_KEYS + 1), dtype=f32),
+            "fingers_due": gym.spaces.Box(*unit, shape=(10,), dtype=f32),
+            "piano_keys": gym.spaces.Box(*unit, shape=(C.NUM_KEYS,), dtype=f32),
+            "piano_sustain": gym.spaces.Box(*unit, shape=(1,), dtype=f32),
         }
         for hand in self.scene.hands:
             p = HAND_OBS_PREFIX[hand.side]
-            spaces[f"{p}_joints"] = gym.spaces.Box(shape=(len(hand.joint_qpos),), **joints)
-            spaces[f"{p}_fingertips"] = gym.spaces.Box(shape=(5, 3), **position)
-            spaces[f"{p}_forearm"] = gym.spaces.Box(shape=(3,), **position)
+            spaces[f"{p}_joints"] = gym.spaces.Box(
+                *joints, shape=(len(hand.joint_qpos),), dtype=f32
+            )
+            spaces[f"{p}_fingertips"] = gym.spaces.Box(*position, shape=(5, 3), dtype=f32)
+            spaces[f"{p}_forearm"] = gym.spaces.Box(*position, shape=(3,), dtype=f32)
         self.observation_space = gym.spaces.Dict(spaces)
         self.action_space = gym.spaces.Box(-1.0, 1.0, shape=(self.model.nu + 1,), dtype=np.float32)
 

@@ -90,7 +90,7 @@ class PianoVectorEnv(VectorEnv):
                 f"actions must have shape {self.action_space.shape}, not {actions.shape}"
             )
         results: list[StepResult | None] = [None] * self.num_envs
-        for i in np.flatnonzero(~self._needs_reset):
+        for i in np.flatnonzero(~self._needs_reset).tolist():
             self.envs[i].apply_action(actions[i])  # validates in the caller's thread
             results[i] = ()  # type: ignore[assignment]  # marks "stepping"
 

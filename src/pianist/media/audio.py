@@ -285,7 +285,7 @@ def _render(
         nonlocal done
         if sample > done:
             # Render straight into the output array (a contiguous block of float32 pairs).
-            synth.generate(sample - done, buffer=memoryview(out[done:sample]).cast("B"))
+            synth.generate(sample - done, buffer=out[done:sample].data.cast("B"))
             done = sample
 
     down: set[int] = set()  # pitches whose key is down

@@ -380,14 +380,12 @@ def _candidate_states(n: int, given: Sequence[int | None]) -> list[tuple[int, ..
         used = {g for g in given if g is not None}
         free_fingers = [f for f in range(5) if f not in used]
         gaps = [i for i, g in enumerate(given) if g is None]
-        found = []
+        found: list[tuple[int, ...]] = []
         for perm in itertools.permutations(free_fingers, len(gaps)):
-            state = list(given)
-            for i, f in zip(gaps, perm, strict=True):
-                state[i] = f
-            found.append(tuple(state))  # type: ignore[arg-type]
+            fill = dict(zip(gaps, perm, strict=True))
+            found.append(tuple(fill[i] if g is None else g for i, g in enumerate(given)))
         if found:
-            return found  # type: ignore[return-value]
+            return found
         # The same finger twice in a file's chord: nothing to choose.
         return [tuple(g if g is not None else 0 for g in given)]
     # More than five notes in one hand cannot be played as written: spread the fingers
@@ -531,10 +529,8 @@ def _finger_hand(
         ordered = sorted(group, key=lambda i: sign * key_position_w(notes[i].pitch))
         u = tuple(sign * key_position_w(notes[i].pitch) for i in ordered)
         black = tuple(KEY_IS_BLACK[notes[i].pitch - LOWEST_PITCH] for i in ordered)
-        given = [
-            notes[i].finger - offset if keep_existing and notes[i].finger is not None else None
-            for i in ordered
-        ]
+        fingers = [notes[i].finger for i in ordered]
+        given = [f - offset if keep_existing and f is not None else None for f in fingers]
         states = tuple(_candidate_states(len(ordered), given))
         slices.append(
             _Slice(

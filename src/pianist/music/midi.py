@@ -146,9 +146,9 @@ def read_midi(path: str | os.PathLike[str], *, out_of_range: OutOfRange = "error
                     note.end_s = now
             queue.append(_OpenNote(msg.note, now, msg.velocity))
         elif kind in ("note_on", "note_off"):
-            queue = waiting.get(msg.note)
-            if queue:
-                note = queue.popleft()
+            pending = waiting.get(msg.note)
+            if pending:
+                note = pending.popleft()
                 close(note, now if note.end_s is None else note.end_s)
         elif kind == "control_change" and msg.control == _SUSTAIN_CC:
             if msg.value >= 64 and pedal_since is None:

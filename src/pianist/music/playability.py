@@ -46,7 +46,7 @@ def check_playability(song: Song) -> list[str]:
             if max(positions) - min(positions) > HAND_MAX_REACH_W:
                 counts["reach"].append(note.onset_s)
             by_pitch = sorted(fingered, key=lambda n: n.pitch)
-            order = [n.finger for n in by_pitch]
+            order = [n.finger for n in by_pitch if n.finger is not None]  # (all fingered)
             expected = sorted(order) if hand == RIGHT else sorted(order, reverse=True)
             if len({n.pitch for n in by_pitch}) == len(by_pitch) and order != expected:
                 counts["crossed"].append(note.onset_s)
