@@ -139,23 +139,9 @@ def pianoplayer_fingering(song: Song) -> tuple[Song, float] | None:
 
 def planner_f1(song: Song, physics: str) -> float:
     from pianist.control import make_controller
-    from pianist.env import PianoEnv
-    from pianist.eval import run_episode
+    from pianist.eval.session import play
 
-    try:
-        controller = make_controller("planner")
-    except ValueError:  # an older tree without the name wired
-        from pianist.control.planner import IKPlanner
-
-        controller = IKPlanner()
-    try:  # the environment options the planner is built for (e.g. the forearm height slide)
-        from pianist.control.planner import planner_env_options
-
-        options = planner_env_options()
-    except ImportError:
-        options = {}
-    env = PianoEnv(song, physics=physics, **options)
-    return float(run_episode(env, controller, seed=0).metrics()["f1"])
+    return float(play(song, make_controller("planner"), physics=physics).metrics["f1"])
 
 
 def quality(names: list[str], seconds: float | None, physics: str) -> list[dict]:

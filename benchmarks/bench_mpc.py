@@ -11,7 +11,7 @@ controller, one seeded episode with ``pianist.eval.run_episode``:
 
 Controllers: ``--mpc SPEC`` (repeatable; a ``pianist.control.mpc.make_mpc`` spec such as
 ``paper``, ``tenth`` or ``paper,num_samples=20,iterations=3``) on the paper's scene, and
-``--planner``: the IK planner, on the scene it asks for (``planner_env_options``: one more
+``--planner``: the IK planner, on the scene it declares (``IKPlanner.env_options``: one more
 forearm slide, tz).
 
 Run: ``python benchmarks/bench_mpc.py --mpc paper --planner [--songs twinkle-twinkle ...]
@@ -22,12 +22,11 @@ from __future__ import annotations
 
 import argparse
 import sys
-import time
 from pathlib import Path
 
+from pianist.control import make_controller
 from pianist.control.mpc import make_mpc
-from pianist.env import PianoEnv
-from pianist.eval import run_episode
+from pianist.eval.session import play
 from pianist.music import load_song
 from pianist.music.transforms import window
 
@@ -38,19 +37,12 @@ def run_one(song_name: str, seconds: float | None, controller_name: str, physics
     song = load_song(song_name)
     if seconds is not None:
         song = window(song, 0.0, seconds)
-    if controller_name == "planner":
-        from pianist.control.planner import IKPlanner, planner_env_options
-
-        # The planner drives an extra forearm height slide (tz); the MPC plays the paper's scene.
-        env = PianoEnv(song, physics=physics, **planner_env_options())
-        controller = IKPlanner()
-    else:
-        env = PianoEnv(song, physics=physics)
-        controller = make_mpc(controller_name)
-    start = time.perf_counter()
-    episode = run_episode(env, controller, seed=seed)
-    wall = time.perf_counter() - start
-    metrics = episode.metrics()
+    # The planner declares an extra forearm height slide (tz); the MPC plays the paper's scene.
+    controller = make_controller("planner") if controller_name == "planner" else None
+    controller = controller or make_mpc(controller_name)
+    result = play(song, controller, physics=physics, seed=seed)
+    metrics = result.metrics
+    wall = metrics["wall_seconds"]
     row = {
         "song": song_name,
         "seconds": metrics["seconds"],
@@ -62,13 +54,11 @@ def run_one(song_name: str, seconds: float | None, controller_name: str, physics
         "wall_s": wall,
         "rtf": metrics["seconds"] / wall,
     }
-    if hasattr(controller, "stats"):
-        stats = controller.stats()
-        row["plan_rtf"] = stats["mpc_realtime_factor"]
-        row["ms_per_step"] = stats["mpc_ms_per_step"]
-        row["rollout_steps_per_s"] = stats["mpc_rollout_steps_per_s"]
-        controller.close()
-    env.close()
+    if "mpc_realtime_factor" in metrics:
+        row["plan_rtf"] = metrics["mpc_realtime_factor"]
+        row["ms_per_step"] = metrics["mpc_ms_per_step"]
+        row["rollout_steps_per_s"] = metrics["mpc_rollout_steps_per_s"]
+    result.env.close()
     return row
 
 

@@ -2,7 +2,7 @@
 
 For every song asked for (default: every built-in song), on the faithful and the fast preset,
 one episode of :class:`pianist.control.planner.IKPlanner` in the environment the CLI uses for
-it (the benchmark's defaults plus the forearm height slide, see ``planner_env_options``):
+it (the benchmark's defaults plus the forearm height slide it declares, ``IKPlanner.env_options``):
 
 - precision, recall, F1 and sustain F1 (the planner is deterministic: one episode suffices);
 - rtf: simulated seconds per wall-clock second, planner included, median over ``--repeats``;
@@ -29,9 +29,9 @@ import time
 import numpy as np
 
 from pianist.control import NoisyController
-from pianist.control.planner import IKPlanner, planner_env_options
-from pianist.env import PianoEnv
+from pianist.control.planner import IKPlanner
 from pianist.eval import run_episode
+from pianist.eval.session import make_env
 from pianist.music import list_songs
 
 PRESETS = ("faithful", "fast")
@@ -55,8 +55,8 @@ class _TimedPlanner(IKPlanner):
 def noisy_f1(song: str, physics: str, episodes: int, buffer_s: float = 0.0) -> tuple[float, float]:
     """Mean and standard deviation of F1 over ``episodes`` noisy episodes (after a lead-in of
     ``buffer_s``: the F1 of the song's own steps)."""
-    env = PianoEnv(song, physics=physics, initial_buffer_s=buffer_s, **planner_env_options())
     noisy = NoisyController(IKPlanner(), NOISE_STD)
+    env = make_env(song, noisy, physics=physics, initial_buffer_s=buffer_s)
     key = "song_f1" if env.config.lead_in_steps else "f1"
     f1 = [run_episode(env, noisy, seed=i).metrics()[key] for i in range(episodes)]
     return float(np.mean(f1)), float(np.std(f1))
@@ -64,13 +64,14 @@ def noisy_f1(song: str, physics: str, episodes: int, buffer_s: float = 0.0) -> t
 
 def lead_in_f1(song: str, physics: str, buffer_s: float) -> float:
     """F1 of the song's own steps in one episode after ``buffer_s`` seconds of silence."""
-    env = PianoEnv(song, physics=physics, initial_buffer_s=buffer_s, **planner_env_options())
-    return run_episode(env, IKPlanner(), seed=0).metrics()["song_f1"]
+    planner = IKPlanner()
+    env = make_env(song, planner, physics=physics, initial_buffer_s=buffer_s)
+    return run_episode(env, planner, seed=0).metrics()["song_f1"]
 
 
 def bench_song(song: str, physics: str, repeats: int) -> dict[str, float]:
-    env = PianoEnv(song, physics=physics, **planner_env_options())
     planner = _TimedPlanner()
+    env = make_env(song, planner, physics=physics)
     rates, shares, metrics = [], [], None
     for _ in range(repeats):
         start = time.perf_counter()

@@ -71,11 +71,15 @@ def test_the_anchored_residual_starts_as_the_planner_and_stays_near_it():
 
 
 def test_the_residual_task_is_the_environment_the_planner_asks_for():
-    planner = pytest.importorskip("pianist.control.planner")
-    wanted = getattr(planner, "planner_env_options", dict)()
-    options = get_preset("residual").task.env_options(("right",))
-    for key, value in wanted.items():
-        assert options[key] == value
+    from pianist.control.planner import IKPlanner
+
+    wanted = IKPlanner().env_options()
+    assert wanted["forearm_dofs"] == ("tx", "ty", "tz")
+    for name in ("residual", "residual-anchored"):
+        options = get_preset(name).task.env_options(("right",))
+        for key, value in wanted.items():
+            assert options[key] == value
+    assert get_preset("fast").task.env_options(("right",))["forearm_dofs"] == ("tx", "ty")
 
 
 @pytest.mark.parametrize("name", list(PRESETS))

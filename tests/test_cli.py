@@ -69,6 +69,25 @@ def test_play_writes_metrics_midi_and_actions(tmp_path, capsys):
     assert replayed["f1"] == metrics["f1"] and replayed["return"] == metrics["return"]
 
 
+def test_a_planner_run_replays_in_the_scene_it_was_recorded_in(tmp_path):
+    out, again = tmp_path / "planned", tmp_path / "again"
+    song = ["play", "c-major-chords", "--physics", "fast", "--no-audio"]
+    assert main([*song, "--out", str(out)]) == 0
+    metrics = json.loads((out / "metrics.json").read_text())
+    # The planner declared the forearm height slide: 41 action dimensions, not the paper's 39.
+    assert metrics["env_options"]["forearm_dofs"] == ["tx", "ty", "tz"]
+    assert np.load(out / "actions.npy").shape == (81, 41)
+    replay = ["--controller", f"replay:{out / 'actions.npy'}", "--out", str(again)]
+    assert main([*song, *replay]) == 0
+    replayed = json.loads((again / "metrics.json").read_text())
+    assert replayed["f1"] == metrics["f1"] and replayed["return"] == metrics["return"]
+    assert replayed["env_options"]["forearm_dofs"] == ["tx", "ty", "tz"]
+    # A contradicting explicit choice is refused in one line.
+    result = run("play", "c-major-chords", "--physics", "faithful", *replay)
+    assert result.returncode == 1 and "physics='fast'" in result.stderr, result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1
+
+
 @pytest.mark.parametrize(
     ("make_input", "message"),
     [
@@ -134,6 +153,26 @@ def test_failed_run_keeps_previous_results(tmp_path):
     assert not list(out.glob(".*.tmp"))
 
 
+def test_a_run_replaces_the_previous_one_whole(tmp_path):
+    out = tmp_path / "run"
+    assert _play_zero(out) == 0
+    assert (out / "performance.wav").is_file() and (out / "score.wav").is_file()
+    assert _play_zero(out, "--no-audio") == 0
+    # No file of the earlier run is left beside the new one's.
+    names = sorted(p.name for p in out.iterdir())
+    assert names == ["actions.npy", "metrics.json", "performance.mid", "pianoroll.png"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]  # no temporary left
+
+
+def test_a_folder_holding_other_files_is_refused(tmp_path):
+    out = tmp_path / "mine"
+    out.mkdir()
+    (out / "thesis.tex").write_text("precious")
+    result = run("play", "c-major-chords", "--controller", "zero", "--out", str(out))
+    assert result.returncode == 1 and "holds other files" in result.stderr, result.stderr
+    assert (out / "thesis.tex").read_text() == "precious" and len(list(out.iterdir())) == 1
+
+
 def _play_zero(out: Path, *extra: str) -> int:
     """``pianist play c-major-chords`` with the zero controller on the fast preset."""
     args = ["play", "c-major-chords", "--controller", "zero", "--physics", "fast"]
@@ -185,7 +224,7 @@ def test_bad_media_options_fail_before_playing(tmp_path, extra, message):
     assert result.returncode == 1
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and message in lines[0], result.stderr
-    assert not (out / "metrics.json").exists()
+    assert not out.exists()  # a refused command creates nothing
 
 
 def test_corrupt_soundfont_is_refused(tmp_path):
@@ -272,6 +311,8 @@ def test_train_resume_eval_and_play_a_policy(tmp_path):
     ("args", "message"),
     [
         (["train", "c-major-chords", "--preset", "nope"], "unknown preset"),
+        (["train", "c-major-chords", "--steps", "0"], "--steps must be at least 1"),
+        (["train", "--resume", "/no/such/run", "--steps", "-5"], "--steps must be at least 1"),
         (["train"], "give a SONG"),
         (["eval", "/no/such/run", "c-major-chords"], "run directory not found"),
         (["play", "c-major-chords", "--controller", "policy:/no/such/run"], "not found"),

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from pianist.control import make_controller
-from pianist.control.planner import IKPlanner, PlannerConfig, planner_env_options
+from pianist.control.planner import ENV_OPTIONS, IKPlanner, PlannerConfig
 from pianist.env import PianoEnv
 from pianist.eval import run_episode
 from pianist.music import Note, Song
@@ -12,7 +12,7 @@ from pianist.sim.constants import BLACK_KEY_MASK, FINGERTIP_CAPSULE_RADIUS_M
 
 
 def _play(song, physics="fast"):
-    env = PianoEnv(song, physics=physics, **planner_env_options())
+    env = PianoEnv(song, physics=physics, **ENV_OPTIONS)
     episode = run_episode(env, IKPlanner(), seed=0)
     return env, episode
 
@@ -55,7 +55,7 @@ def test_the_planner_reaches_the_target_on_debug_songs(song):
 
 def test_same_song_same_actions():
     song = Song(tuple(Note(60 + 2 * i, 0.2 * i, 0.2 * i + 0.3, finger=1 + i % 3) for i in range(5)))
-    env = PianoEnv(song, physics="fast", **planner_env_options())
+    env = PianoEnv(song, physics="fast", **ENV_OPTIONS)
     first = run_episode(env, IKPlanner(), seed=0).actions
     second = run_episode(env, IKPlanner(), seed=1).actions
     np.testing.assert_array_equal(first, second)
@@ -90,7 +90,7 @@ def test_the_papers_scene_without_the_height_slide_still_plays_the_fingers():
 
 def _step_planner(song, frames, physics="fast"):
     """Play ``frames`` steps; returns the env, the planner and each step's (qpos copy)."""
-    env = PianoEnv(song, physics=physics, **planner_env_options())
+    env = PianoEnv(song, physics=physics, **ENV_OPTIONS)
     planner = IKPlanner()
     observation, _ = env.reset(seed=0)
     planner.reset(env, seed=0)
@@ -122,7 +122,7 @@ def test_a_wide_chord_keeps_every_finger_within_its_reach():
     # With no margin left unused, every chord of the song fits under one hand position; the
     # resting places alone (the default for single notes) put the thumb out of reach of C4
     # under C-F-A.
-    env = PianoEnv("c-major-chords", physics="fast", **planner_env_options())
+    env = PianoEnv("c-major-chords", physics="fast", **ENV_OPTIONS)
     env.reset(seed=0)
     planner = IKPlanner(PlannerConfig(reach_margin=0.0))
     planner.reset(env)
@@ -153,7 +153,7 @@ def test_with_a_lead_in_the_chord_song_meets_the_target():
     # The chord song makes its first chord due in the first step, with the hands at home 15 cm
     # away: that cold start is most of what it loses. Given half a second first (the
     # original's initial_buffer_time), its own steps reach the target (measured 0.960).
-    env = PianoEnv("c-major-chords", physics="fast", initial_buffer_s=0.5, **planner_env_options())
+    env = PianoEnv("c-major-chords", physics="fast", initial_buffer_s=0.5, **ENV_OPTIONS)
     metrics = run_episode(env, IKPlanner(), seed=0).metrics()
     assert metrics["lead_in_steps"] == 10
     assert metrics["song_f1"] >= 0.95, metrics
@@ -175,7 +175,7 @@ def test_a_thumb_that_cannot_line_up_at_hover_height_presses_from_where_it_stand
     # With the hand 1 cm right of where the thumb rests over C4, the thumb cannot get over the
     # key at hover height (it stood there for the whole note before); at key depth it can.
     song = Song((Note(60, 0.5, 1.5, finger=0), Note(84, 2.0, 2.5, finger=0)), name="thumb")
-    env = PianoEnv(song, physics="fast", **planner_env_options())
+    env = PianoEnv(song, physics="fast", **ENV_OPTIONS)
     planner = IKPlanner()
     observation, _ = env.reset(seed=0)
     planner.reset(env)
@@ -192,7 +192,7 @@ def test_a_thumb_that_cannot_line_up_at_hover_height_presses_from_where_it_stand
 
 def _wrist_swing(feedback, frames=range(31, 40)):
     """Mean |WRJ2| of the right hand over ``frames`` of the C major scale (fast physics)."""
-    env = PianoEnv("c-major-scale-right", physics="fast", **planner_env_options())
+    env = PianoEnv("c-major-scale-right", physics="fast", **ENV_OPTIONS)
     planner = IKPlanner(PlannerConfig(wrist_feedback=feedback))
     observation, _ = env.reset(seed=0)
     planner.reset(env, seed=0)
@@ -215,7 +215,7 @@ def test_the_wrist_is_held_straight_after_a_shift():
 
 
 def test_the_hand_stays_put_while_the_fingers_reach():
-    env = PianoEnv("c-major-scale-right", physics="fast", **planner_env_options())
+    env = PianoEnv("c-major-scale-right", physics="fast", **ENV_OPTIONS)
     env.reset(seed=0)
     moves = {}
     for lazy in (0.0, 0.02):
@@ -240,7 +240,7 @@ def test_no_finger_strains_for_a_key_beyond_the_next_shift():
     # thumb cannot, and on its way it dipped onto D4.
     hovering = {}
     for stop in (True, False):
-        env = PianoEnv("c-major-scale-right", physics="fast", **planner_env_options())
+        env = PianoEnv("c-major-scale-right", physics="fast", **ENV_OPTIONS)
         planner = IKPlanner(PlannerConfig(hover_stops_at_shift=stop))
         observation, _ = env.reset(seed=0)
         planner.reset(env, seed=0)
@@ -277,7 +277,7 @@ def test_a_chord_wider_than_the_hand_keeps_its_outer_voice(low, high, fingers, k
     # the bass in the left hand, the top in the right, for the whole note; before, it put the
     # hand halfway and hit neither key but their neighbours.
     notes = (Note(low, 0.5, 1.5, finger=fingers[0]), Note(high, 0.5, 1.5, finger=fingers[1]))
-    env = PianoEnv(Song(notes, name="octave"), physics="fast", **planner_env_options())
+    env = PianoEnv(Song(notes, name="octave"), physics="fast", **ENV_OPTIONS)
     planner = IKPlanner()
     episode = run_episode(env, planner, seed=0)
     down = np.asarray(episode.active_keys)
@@ -320,7 +320,7 @@ def test_a_shift_holds_the_keys_before_it_as_long_as_it_can():
     # the hand shifts 6 cm in two moves (halfway for frame 30, where both are due, then over
     # G4 for frame 31). The fingers let go for them in steps 29 and 30, one step before each
     # frame; F#4 still sounds at frame 28. Moving a frame earlier, it fell silent at 28 too.
-    env = PianoEnv("d-major-scale-right", physics="fast", **planner_env_options())
+    env = PianoEnv("d-major-scale-right", physics="fast", **ENV_OPTIONS)
     held = {}
     for lead in (0, 1):
         planner = IKPlanner(PlannerConfig(shift_lead_frames=lead))

@@ -48,8 +48,9 @@ def test_missing_folder_raises_the_callers_error_in_one_line(tmp_path: Path) -> 
 
     with pytest.raises(FileWriteError, match="cannot write"):
         write_text_atomic("x", tmp_path / "nope" / "f.txt")
-    with pytest.raises(MyError, match=r"cannot write .*f\.txt: No such file"), atomic_path(
-        tmp_path / "nope" / "f.txt", error=MyError
+    with (
+        pytest.raises(MyError, match=r"cannot write .*f\.txt: No such file"),
+        atomic_path(tmp_path / "nope" / "f.txt", error=MyError),
     ):
         pass
 

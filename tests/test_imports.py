@@ -108,3 +108,38 @@ def test_no_import_cycles_between_modules():
         if module not in state:
             visit(module, [module])
     assert not cycles, "import cycles:\n" + "\n".join(cycles)
+
+
+def _attribute_uses(path: Path, attribute: str) -> list[int]:
+    tree = ast.parse(path.read_text())
+    return [
+        n.lineno for n in ast.walk(tree) if isinstance(n, ast.Attribute) and n.attr == attribute
+    ]
+
+
+def _calls(path: Path, name: str) -> list[int]:
+    tree = ast.parse(path.read_text())
+    return [
+        n.lineno
+        for n in ast.walk(tree)
+        if isinstance(n, ast.Call) and isinstance(n.func, ast.Name) and n.func.id == name
+    ]
+
+
+def test_controllers_read_the_simulator_through_a_control_handle():
+    # Only the environment package unwraps environments (pianist.env.handle.control_handle).
+    for path in PACKAGE.rglob("*.py"):
+        if path.relative_to(PACKAGE).parts[0] != "env":
+            lines = _attribute_uses(path, "unwrapped")
+            assert not lines, f"{path.relative_to(PACKAGE)} reads env.unwrapped at lines {lines}"
+
+
+def test_environments_for_controllers_are_built_in_one_place():
+    # A controller's declared environment options are applied by pianist.eval.session only;
+    # the agents build their training task's environment from its TaskConfig.
+    builders = {Path("eval/session.py"), Path("agents/envs.py"), Path("__init__.py")}
+    for path in PACKAGE.rglob("*.py"):
+        relative = path.relative_to(PACKAGE)
+        if relative.parts[0] != "env" and relative not in builders:
+            lines = _calls(path, "PianoEnv")
+            assert not lines, f"{relative} builds a PianoEnv itself at lines {lines}"

@@ -9,7 +9,6 @@ from __future__ import annotations
 import math
 import os
 import sys
-import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated, Any, Literal
@@ -126,7 +125,7 @@ class Play:
     """Play a song and write its metrics, MIDI, actions, audio, piano roll and (optionally) video.
 
     Writes to OUT: metrics.json, performance.mid, actions.npy, performance.wav, score.wav,
-    pianoroll.png and, with --video, performance.mp4 (every file written atomically).
+    pianoroll.png and, with --video, performance.mp4 (the folder appears whole, or not at all).
     """
 
     song: tyro.conf.Positional[str]
@@ -142,9 +141,10 @@ class Play:
     which the Shadow thumb cannot press); none: no labels (the fingering reward then matches
     fingertips to keys; the planner needs fingers)."""
     out: Path = Path("out")
-    """Output directory (created if missing)."""
-    physics: Literal["faithful", "fast"] = "faithful"
-    """Physics preset."""
+    """Output directory: created with the results once they are complete, or replaced whole
+    if it holds an earlier run's results (a folder holding other files is refused)."""
+    physics: Literal["faithful", "fast"] | None = None
+    """Physics preset (default: faithful; a trained policy plays on its own)."""
     seed: int = 0
     initial_buffer_s: float = 0.0
     """Seconds of silence before the song, for the hands to reach the first notes (the
@@ -167,13 +167,23 @@ class Play:
         if self.video and sys.platform.startswith("linux"):
             # Offscreen rendering without a display; must be set before mujoco is imported.
             os.environ.setdefault("MUJOCO_GL", "egl")
-        from pianist.control import make_controller
-        from pianist.env import PianoEnv
-        from pianist.eval import run_episode
-        from pianist.files import save_npy_atomic, write_json_atomic
-        from pianist.music import load_song, write_midi
+        from pianist.eval.session import make_env, play
+        from pianist.media.results import (
+            MediaOptions,
+            check_media_options,
+            check_output_folder,
+            write_result,
+        )
+        from pianist.music import load_song
 
         # Everything that can be checked before the (long) episode is checked first.
+        if not (math.isfinite(self.initial_buffer_s) and self.initial_buffer_s >= 0):
+            raise CliError(f"--initial-buffer-s must be >= 0 seconds, not {self.initial_buffer_s}")
+        if self.controller.startswith("policy:") and self.initial_buffer_s:
+            raise CliError(
+                "--initial-buffer-s does not apply to a trained policy, which plays the task it "
+                "was trained on"
+            )
         song = load_song(self.song, fingering=self.fingering)
         if self.controller == "planner" and song.fingering_coverage < 1.0:
             missing = sum(n.finger is None for n in song.notes)
@@ -181,105 +191,45 @@ class Play:
                 f"{self.song}: {missing} of {song.num_notes} notes have no fingering; the "
                 "planner needs a finger for every note (use --fingering auto)"
             )
-        if not (math.isfinite(self.initial_buffer_s) and self.initial_buffer_s >= 0):
-            raise CliError(f"--initial-buffer-s must be >= 0 seconds, not {self.initial_buffer_s}")
-        policy = self.controller.startswith("policy:")
-        if policy and self.initial_buffer_s:
-            raise CliError(
-                "--initial-buffer-s does not apply to a trained policy, which plays the task it "
-                "was trained on"
-            )
-        if policy:
-            from pianist.agents import PolicyController
-
-            controller = PolicyController(self.controller.removeprefix("policy:"))
-        else:
-            controller = make_controller(self.controller)
-        if self.audio:
-            from pianist.media import check_soundfont
-
-            check_soundfont(self.soundfont)
-        _prepare_dir(self.out)
-        if policy:  # the task the policy was trained on (its physics, hands, lookahead)
-            env_options = controller.env_options(song)
-            env = controller.make_env(song)
-        else:
-            env_options = _env_options_for(self.controller)
-            if self.fingering == "none":
-                env_options["fingering_reward"] = "optimal"
-            if self.initial_buffer_s:
-                env_options["initial_buffer_s"] = self.initial_buffer_s
-            env = PianoEnv(song, physics=self.physics, **env_options)
-        if self.video:
-            from pianist.media import check_video_options
-
-            check_video_options(env.model, self.camera, self.fps, self.size)
-
-        start = time.perf_counter()
-        episode = run_episode(env, controller, seed=self.seed, progress=sys.stderr.isatty())
-        wall = time.perf_counter() - start
-        metrics = episode.metrics()
-        if hasattr(controller, "stats"):  # planning controllers report their own timing
-            metrics.update(controller.stats())
-            metrics["controller_options"] = controller.options_dict()
-        if hasattr(controller, "close"):
-            controller.close()
-        metrics.update(
-            song=self.song,
-            controller=self.controller,
-            fingering=self.fingering,
-            physics=self.physics,
-            seed=self.seed,
-            env_options={k: list(v) if isinstance(v, tuple) else v for k, v in env_options.items()},
-            wall_seconds=wall,
-            realtime_factor=metrics["seconds"] / wall if wall > 0 else float("inf"),
+        controller = _make_controller(self.controller)
+        check_output_folder(self.out)
+        media = MediaOptions(
+            audio=self.audio,
+            video=self.video,
+            camera=self.camera,
+            fps=self.fps,
+            size=self.size,
+            soundfont=self.soundfont,
+            progress=sys.stderr.isatty(),
         )
-        save_npy_atomic(episode.actions, self.out / "actions.npy")
-        write_midi(episode.performance(), self.out / "performance.mid")
-        self._write_media(env, song, episode)
-        write_json_atomic(metrics, self.out / "metrics.json")
+        if self.video:  # the cameras are the scene's: build it once to check
+            check_media_options(make_env(song, controller, physics=self.physics), media)
+        else:
+            check_media_options(None, media)
+        result = play(
+            song,
+            controller,
+            physics=self.physics,
+            fingering=self.fingering,
+            initial_buffer_s=self.initial_buffer_s,
+            seed=self.seed,
+            progress=sys.stderr.isatty(),
+        )
+        metrics = result.metrics
+        title = f"{self.song} ({self.controller}, {metrics['physics']} physics)"
+        write_result(
+            result,
+            self.out,
+            media,
+            title=title,
+            extra_metrics={"song": self.song, "controller": self.controller},
+        )
         song_f1 = f"  song F1 {metrics['song_f1']:.3f}" if "song_f1" in metrics else ""
         _out(
             f"{self.song}: precision {metrics['precision']:.3f}  recall {metrics['recall']:.3f}  "
             f"F1 {metrics['f1']:.3f}{song_f1}  sustain F1 {metrics['sustain_f1']:.3f}  "
             f"({metrics['steps']} steps, {metrics['realtime_factor']:.1f}x real time) -> {self.out}"
         )
-
-    def _write_media(self, env: Any, song: Any, episode: Any) -> None:
-        from pianist.media import (
-            plot_pianoroll,
-            render_episode,
-            synthesize_events,
-            synthesize_song,
-            write_wav,
-        )
-        from pianist.music.transforms import delay
-
-        plot_pianoroll(
-            episode,
-            self.out / "pianoroll.png",
-            title=f"{self.song} ({self.controller}, {self.physics} physics)",
-            weights=env.config.rewards.as_dict(),
-        )
-        performance = None
-        if self.audio:
-            duration = episode.num_steps * episode.control_timestep_s
-            performance = synthesize_events(episode.note_events, duration, soundfont=self.soundfont)
-            write_wav(performance, self.out / "performance.wav")
-            # The score starts where the performance's song does: after the lead-in.
-            score = delay(song, env.config.lead_in_steps * env.config.control_timestep_s)
-            write_wav(synthesize_song(score, soundfont=self.soundfont), self.out / "score.wav")
-        if self.video:
-            render_episode(
-                env,
-                episode,
-                self.out / "performance.mp4",
-                camera=self.camera,
-                fps=self.fps,
-                size=self.size,
-                audio=performance,
-                progress=sys.stderr.isatty(),
-            )
 
 
 @dataclass(frozen=True)
@@ -304,9 +254,13 @@ class Train:
         from pianist.agents import PRESETS, train
         from pianist.agents.rundir import read_run_config
 
+        if self.steps is not None and self.steps < 1:
+            raise CliError(f"--steps must be at least 1, not {self.steps}")
         _require_jax()
         if self.resume is not None:
-            steps = self.steps or int(read_run_config(self.resume)["steps"])
+            steps = (
+                self.steps if self.steps is not None else int(read_run_config(self.resume)["steps"])
+            )
             result = train(
                 None, None, steps, self.resume, resume=True, progress=self.progress, message=_out
             )
@@ -319,7 +273,7 @@ class Train:
             result = train(
                 self.song,
                 self.preset,
-                self.steps or 1_000_000,
+                self.steps if self.steps is not None else 1_000_000,
                 self.out,
                 progress=self.progress,
                 message=_out,
@@ -336,7 +290,8 @@ class Train:
 
 @dataclass(frozen=True)
 class Eval:
-    """Score a trained policy on a song: metrics.json, performance.mid and actions.npy."""
+    """Score a trained policy on a song: metrics.json, performance.mid, actions.npy and
+    pianoroll.png."""
 
     run_dir: tyro.conf.Positional[Path]
     """A training run directory (from `pianist train`)."""
@@ -348,26 +303,21 @@ class Eval:
 
     def run(self) -> None:
         from pianist.agents import PolicyController
-        from pianist.eval import run_episode
-        from pianist.files import save_npy_atomic, write_json_atomic
-        from pianist.music import write_midi
+        from pianist.eval.session import play
+        from pianist.media.results import MediaOptions, check_output_folder, write_result
 
         controller = PolicyController(self.run_dir)
-        env = controller.make_env(self.song)
         out = self.out or self.run_dir / "eval"
-        _prepare_dir(out)
-        episode = run_episode(env, controller, seed=self.seed)
-        metrics = episode.metrics()
-        metrics.update(
-            song=self.song,
-            run=str(self.run_dir),
-            checkpoint_step=controller.step,
-            preset=controller.config.preset,
-            seed=self.seed,
-        )
-        save_npy_atomic(episode.actions, out / "actions.npy")
-        write_midi(episode.performance(), out / "performance.mid")
-        write_json_atomic(metrics, out / "metrics.json")
+        check_output_folder(out)
+        result = play(self.song, controller, seed=self.seed)
+        metrics = result.metrics
+        extra = {
+            "song": self.song,
+            "run": str(self.run_dir),
+            "checkpoint_step": controller.step,
+            "preset": controller.config.preset,
+        }
+        write_result(result, out, MediaOptions(audio=False), extra_metrics=extra)
         _out(
             f"{self.song}: precision {metrics['precision']:.3f}  recall {metrics['recall']:.3f}  "
             f"F1 {metrics['f1']:.3f}  sustain F1 {metrics['sustain_f1']:.3f}  "
@@ -382,13 +332,15 @@ def _require_jax() -> None:
         raise CliError("training needs JAX: pip install 'pianist[rl]' (jax, flax, optax)")
 
 
-def _env_options_for(controller: str) -> dict[str, Any]:
-    """Environment options a controller needs beyond the benchmark's defaults."""
-    if controller == "planner":
-        from pianist.control.planner import planner_env_options
+def _make_controller(spec: str) -> Any:
+    """A controller from the --controller spec: policy:RUN_DIR, or what make_controller takes."""
+    if spec.startswith("policy:"):
+        from pianist.agents import PolicyController
 
-        return planner_env_options()
-    return {}
+        return PolicyController(spec.removeprefix("policy:"))
+    from pianist.control import make_controller
+
+    return make_controller(spec)
 
 
 def _prepare_dir(path: Path) -> None:

@@ -100,7 +100,9 @@ class TaskConfig:
     """Compact goal: for frames t..t+n-1 and every finger, whether it is due and the vector from
     its fingertip to its key's target (m x 10). 0: off."""
     residual: bool = False
-    """Act as a correction added to the inverse-kinematics planner's action."""
+    """Act as a correction added to the inverse-kinematics planner's action, in the environment
+    the planner declares (its ``env_options``, e.g. the forearm height slide, override the
+    fields above)."""
     residual_scale: float = 0.3
     """The residual's range: final action = clip(planner + scale * agent action, -1, 1)."""
 
@@ -109,7 +111,7 @@ class TaskConfig:
         hands: str = self.hands
         if hands == "song":
             hands = song_hands[0] if len(song_hands) == 1 else "both"
-        return {
+        options: dict[str, Any] = {
             "lookahead": self.lookahead,
             "hands": hands,
             "physics": self.physics,
@@ -119,6 +121,11 @@ class TaskConfig:
             "forearm_dofs": self.forearm_dofs,
             "initial_buffer_s": self.initial_buffer_s,
         }
+        if self.residual:
+            from pianist.control.planner import IKPlanner
+
+            options.update(IKPlanner().env_options())
+        return options
 
 
 @dataclass(frozen=True)
@@ -235,13 +242,11 @@ PRESETS: dict[str, TrainConfig] = {
     # Fast, with a higher update-to-data ratio.
     "fast-utd2": dataclasses.replace(FAST, preset="fast-utd2", updates_per_step=2),
     # A correction on top of the inverse-kinematics planner, in the environment the planner
-    # plays best in: with the forearm height slide (pianist.control.planner.planner_env_options).
+    # declares (TaskConfig.residual).
     "residual": dataclasses.replace(
         FAST,
         preset="residual",
-        task=dataclasses.replace(
-            FAST.task, residual=True, residual_scale=0.3, forearm_dofs=("tx", "ty", "tz")
-        ),
+        task=dataclasses.replace(FAST.task, residual=True, residual_scale=0.3),
         seed_steps=1000,
     ),
     # The residual made to start as the planner and stay near it: a zero-initialised mean head
@@ -256,9 +261,7 @@ PRESETS: dict[str, TrainConfig] = {
     "residual-anchored": dataclasses.replace(
         FAST,
         preset="residual-anchored",
-        task=dataclasses.replace(
-            FAST.task, residual=True, residual_scale=0.3, forearm_dofs=("tx", "ty", "tz")
-        ),
+        task=dataclasses.replace(FAST.task, residual=True, residual_scale=0.3),
         agent=dataclasses.replace(
             FAST.agent,
             zero_mean_init=True,

@@ -19,6 +19,7 @@ import numpy as np
 
 from pianist.agents.config import TaskConfig
 from pianist.env import PianoEnv
+from pianist.env.handle import control_handle
 from pianist.music import GoalFrames, Song, load_song
 
 TARGET_SCALE = 10.0  # m -> dm: fingertip-to-key vectors of a few cm become ~0.1-1
@@ -37,7 +38,7 @@ class AgentEnv(gym.Wrapper):
     def __init__(self, env: gym.Env, task: TaskConfig) -> None:
         super().__init__(env)
         self.task = task
-        base = env.unwrapped
+        self.handle = base = control_handle(env)
         self._action_shape = _box(env.action_space).shape
         A = self._action_shape[0]
         assert isinstance(env.observation_space, gym.spaces.Dict)  # as a PianoEnv's
@@ -68,15 +69,15 @@ class AgentEnv(gym.Wrapper):
             self._key_target = scratch.site_xpos[base.scene.key_sites].astype(np.float32)
         self.observation_space = gym.spaces.Dict(spaces)
 
-    # Attributes of the wrapped environment that rollouts and controllers read.
-    config = property(lambda self: self.env.unwrapped.config)
-    data = property(lambda self: self.env.unwrapped.data)
-    model = property(lambda self: self.env.unwrapped.model)
-    goal = property(lambda self: self.env.unwrapped.goal)
-    scene = property(lambda self: self.env.unwrapped.scene)
-    step_index = property(lambda self: self.env.unwrapped.step_index)
-    num_steps = property(lambda self: self.env.unwrapped.num_steps)
-    action_names = property(lambda self: self.env.unwrapped.action_names)
+    # The wrapped environment's attributes, as a PianoEnv has them.
+    config = property(lambda self: self.handle.config)
+    data = property(lambda self: self.handle.data)
+    model = property(lambda self: self.handle.model)
+    goal = property(lambda self: self.handle.goal)
+    scene = property(lambda self: self.handle.scene)
+    step_index = property(lambda self: self.handle.step_index)
+    num_steps = property(lambda self: self.handle.num_steps)
+    action_names = property(lambda self: self.handle.action_names)
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         obs, info = self.env.reset(seed=seed, options=options)
@@ -94,7 +95,7 @@ class AgentEnv(gym.Wrapper):
             obs["prev_reward"] = np.array([reward], np.float32)
         n = self.task.finger_target_frames
         if n > 0:
-            t = self.env.unwrapped.step_index
+            t = self.handle.step_index
             keys = self._finger_key[t : t + n]  # (n, F)
             due = keys >= 0
             tips = np.concatenate([obs[k] for k in self._tip_keys])  # (F, 3)
@@ -158,7 +159,7 @@ class Featurizer:
         if self.task.residual:
             from pianist.control.planner import IKPlanner
 
-            self._env = env.unwrapped
+            self._env = control_handle(env)
             self._planner = IKPlanner()
             self._planner.reset(env, seed)
 

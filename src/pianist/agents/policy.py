@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -9,7 +10,7 @@ import gymnasium as gym
 import numpy as np
 
 from pianist.agents.config import TrainConfig
-from pianist.agents.envs import AgentEnv, Featurizer, make_agent_env, song_hands
+from pianist.agents.envs import AgentEnv, Featurizer, song_hands
 
 _SQRT_2_OVER_PI = np.float32(np.sqrt(2.0 / np.pi))
 
@@ -19,7 +20,11 @@ def _gelu(x: np.ndarray) -> np.ndarray:
     return 0.5 * x * (1.0 + np.tanh(_SQRT_2_OVER_PI * (x + np.float32(0.044715) * x**3)))
 
 
-_ACTIVATIONS = {"gelu": _gelu, "relu": lambda x: np.maximum(x, 0), "tanh": np.tanh}
+_ACTIVATIONS: dict[str, Callable[[np.ndarray], np.ndarray]] = {
+    "gelu": _gelu,
+    "relu": lambda x: np.maximum(x, 0),
+    "tanh": np.tanh,
+}
 
 
 class NumpyActor:
@@ -73,7 +78,7 @@ class PolicyController:
     def __init__(self, run_dir: str | Path) -> None:
         from pianist.agents.checkpoint import load_policy
 
-        self.run_dir = Path(run_dir)
+        self.run_dir: Path | None = Path(run_dir)
         self.config, weights, self.step = load_policy(self.run_dir)
         a = self.config.agent
         self.actor = NumpyActor(weights, a.activation, a.log_std_min, a.log_std_max)
@@ -87,13 +92,22 @@ class PolicyController:
         self._features = None
         return self
 
-    def make_env(self, song: Any) -> AgentEnv:
-        """The environment of the training task, for ``song`` (a name, a file, a Song)."""
-        return make_agent_env(song, self.config.task)
+    def make_env(self, song: Any) -> gym.Env:
+        """The environment of the training task, for ``song`` (a name, a file, a Song): what
+        :func:`pianist.eval.session.make_env` builds from :meth:`env_options` and
+        :meth:`wrap_env`."""
+        from pianist.eval.session import make_env
+
+        return make_env(song, self)
 
     def env_options(self, song: Any) -> dict[str, Any]:
-        """The :class:`pianist.env.PianoEnv` options :meth:`make_env` uses for ``song``."""
+        """The :class:`pianist.env.PianoEnv` options :meth:`make_env` uses for ``song``: the
+        whole task it was trained on (physics, hands, lookahead, action space, lead-in)."""
         return self.config.task.env_options(song_hands(song))
+
+    def wrap_env(self, env: gym.Env) -> AgentEnv:
+        """The environment as the policy observes it (its task's extra observation entries)."""
+        return AgentEnv(env, self.config.task)
 
     def reset(self, env: gym.Env, seed: int | None = None) -> None:
         if not isinstance(env, AgentEnv):

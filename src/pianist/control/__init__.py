@@ -1,7 +1,7 @@
 """Controllers that need no training."""
 
+from pianist.control.base import BaseController, Controller
 from pianist.control.basic import (
-    Controller,
     NoisyController,
     RandomController,
     ReplayController,
@@ -10,6 +10,7 @@ from pianist.control.basic import (
 )
 
 __all__ = [
+    "BaseController",
     "Controller",
     "NoisyController",
     "RandomController",

@@ -1,25 +1,22 @@
-"""Baseline controllers: random actions, a neutral pose, and replaying recorded actions.
-
-A controller is reset with the environment it will drive, then maps each observation to a
-normalised action in [-1, 1]^A, like any policy.
-"""
+"""Baseline controllers (random actions, a neutral pose, noise added to another controller,
+replaying recorded actions) and :func:`make_controller`, a controller from its name."""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any
 
 import gymnasium as gym
 import numpy as np
 
+from pianist.control.base import BaseController, Controller
 
-class Controller(Protocol):
-    def reset(self, env: gym.Env, seed: int | None = None) -> None: ...
-
-    def act(self, observation: dict[str, np.ndarray]) -> np.ndarray: ...
+if TYPE_CHECKING:
+    from pianist.music import Song
 
 
-class RandomController:
+class RandomController(BaseController):
     """Uniform random actions in [-1, 1] from a seeded generator."""
 
     def reset(self, env: gym.Env, seed: int | None = None) -> None:
@@ -30,7 +27,7 @@ class RandomController:
         return self._rng.uniform(-1.0, 1.0, self._shape).astype(np.float32)
 
 
-class ZeroController:
+class ZeroController(BaseController):
     """Every actuator at the middle of its range (action 0), the pedal up (action -1)."""
 
     def reset(self, env: gym.Env, seed: int | None = None) -> None:
@@ -41,7 +38,7 @@ class ZeroController:
         return self._action.copy()
 
 
-class NoisyController:
+class NoisyController(BaseController):
     """Another controller's actions plus Gaussian noise of std ``sigma`` (action units), clipped
     to [-1, 1]; the noise generator is seeded from ``reset``'s seed.
 
@@ -55,6 +52,11 @@ class NoisyController:
             raise ValueError(f"noise std must be >= 0, not {sigma}")
         self.controller, self.sigma = controller, sigma
 
+    def env_options(self, song: Song) -> dict[str, Any]:
+        """The wrapped controller's."""
+        options = getattr(self.controller, "env_options", None)
+        return options(song) if options is not None else {}
+
     def reset(self, env: gym.Env, seed: int | None = None) -> None:
         self._rng = np.random.default_rng([0 if seed is None else seed, 11])
         self.controller.reset(env, seed)
@@ -65,10 +67,16 @@ class NoisyController:
         return np.clip(action + noise, -1.0, 1.0).astype(np.float32)
 
 
-class ReplayController:
-    """Plays back a (T, A) array of actions, for example a saved ``actions.npy``."""
+class ReplayController(BaseController):
+    """Plays back a (T, A) array of actions, for example a saved ``actions.npy``.
+
+    Actions only replay in the scene they were recorded in: a file written by ``pianist play``
+    has a ``metrics.json`` beside it whose ``env_options`` (forearm slides, physics, lead-in)
+    this controller then declares as the environment it needs.
+    """
 
     def __init__(self, actions: np.ndarray | str | Path) -> None:
+        self.recorded_env_options: dict[str, Any] = {}
         if isinstance(actions, str | Path):
             path = Path(actions)
             if not path.is_file():
@@ -77,9 +85,14 @@ class ReplayController:
                 actions = np.load(path, allow_pickle=False)
             except (ValueError, OSError, EOFError) as exc:
                 raise ValueError(f"{path} is not a readable .npy array ({exc})") from None
+            self.recorded_env_options = _recorded_env_options(path.with_name("metrics.json"))
         self.actions = np.asarray(actions, dtype=np.float32)
         if self.actions.ndim != 2:
             raise ValueError(f"replayed actions must be a (T, A) array, not {self.actions.shape}")
+
+    def env_options(self, song: Song) -> dict[str, Any]:
+        """The environment the actions were recorded in (empty when not known)."""
+        return dict(self.recorded_env_options)
 
     def reset(self, env: gym.Env, seed: int | None = None) -> None:
         expected = _action_shape(env)[0]
@@ -103,6 +116,20 @@ def _action_shape(env: gym.Env) -> tuple[int, ...]:
     shape = env.action_space.shape
     assert shape is not None, f"{env.action_space} has no shape"
     return shape
+
+
+def _recorded_env_options(metrics_path: Path) -> dict[str, Any]:
+    """``env_options`` of the metrics.json written beside recorded actions ({} if none)."""
+    if not metrics_path.is_file():
+        return {}
+    try:
+        options = json.loads(metrics_path.read_text()).get("env_options", {})
+    except (OSError, json.JSONDecodeError, AttributeError) as exc:
+        raise ValueError(f"{metrics_path} beside the actions is unreadable ({exc})") from None
+    if not isinstance(options, dict):
+        raise ValueError(f"{metrics_path}: env_options must be a mapping")
+    # JSON has lists where the options take tuples (forearm_dofs).
+    return {k: tuple(v) if isinstance(v, list) else v for k, v in options.items()}
 
 
 def make_controller(spec: str, **kwargs: Any) -> Controller:

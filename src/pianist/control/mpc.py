@@ -46,8 +46,9 @@ environment would score it against (the frame of the control step it falls in):
 - finger term: mean over the due keys that have a finger of the distance (m) from that
   fingertip to the key's strike point (the fingering reward's target), 0 if none is due.
 
-The controller needs the environment's full state, so it reads ``env.data`` of the
-:class:`pianist.env.PianoEnv` it was reset with (an MPC cannot act from observations alone).
+The controller needs the environment's full state, so it reads the simulator through the
+:class:`pianist.env.handle.ControlHandle` of the environment it was reset with (an MPC cannot
+act from observations alone).
 """
 
 from __future__ import annotations
@@ -62,8 +63,9 @@ import mujoco
 import numpy as np
 from mujoco import rollout as mj_rollout
 
+from pianist.control.base import BaseController
 from pianist.control.spline import INTERPOLATIONS, Interpolation, interpolation_weights, knot_times
-from pianist.env.piano_env import action_to_ctrl
+from pianist.env.handle import ControlHandle, control_handle
 from pianist.sim import constants as C
 from pianist.sim.scene import build_spec
 
@@ -163,6 +165,10 @@ def make_mpc(spec: str | MPCOptions | None = None, **overrides: Any) -> Predicti
 
 
 def _parse_spec(spec: str) -> tuple[MPCOptions, dict[str, Any]]:
+    """``PRESET,name=value,...`` -> (the preset's options, {field: parsed value}).
+
+    Values are parsed by tyro, the parser of the command line, from the fields' types.
+    """
     parts = [p.strip() for p in spec.split(",") if p.strip()]
     options = MPC_PRESETS["paper"]
     if parts and "=" not in parts[0]:
@@ -170,31 +176,32 @@ def _parse_spec(spec: str) -> tuple[MPCOptions, dict[str, Any]]:
         if name not in MPC_PRESETS:
             raise ValueError(f"unknown MPC preset {name!r}; choose from {sorted(MPC_PRESETS)}")
         options = MPC_PRESETS[name]
-    types = {f.name: f.type for f in fields(MPCOptions)}
+    names = sorted(f.name for f in fields(MPCOptions))
     parsed: dict[str, Any] = {}
     for part in parts:
         key, sep, value = part.partition("=")
         key = key.strip().replace("-", "_")
-        if not sep or key not in types:
-            raise ValueError(
-                f"bad MPC option {part!r}; expected NAME=VALUE with NAME in {sorted(types)}"
-            )
-        parsed[key] = _parse_value(key, types[key], value.strip())
+        if not sep or key not in names:
+            raise ValueError(f"bad MPC option {part!r}; expected NAME=VALUE with NAME in {names}")
+        parsed[key] = _parse_value(key, value.strip())
     return options, parsed
 
 
-def _parse_value(key: str, kind: Any, value: str) -> Any:
-    kind = str(kind)
+def _parse_value(key: str, value: str) -> Any:
+    """One field's value from its text, as ``--key value`` on the command line would give it."""
+    import contextlib
+    import io
+
+    import tyro
+
+    flag = "--" + key.replace("_", "-")
     try:
-        if kind.startswith("int | None"):
-            return None if value.lower() == "none" else int(value)
-        if kind == "int":
-            return int(value)
-        if kind == "float":
-            return float(value)
-    except ValueError:
+        # tyro reports a bad value on stderr and exits; the caller gets one line instead.
+        with contextlib.redirect_stderr(io.StringIO()), contextlib.redirect_stdout(io.StringIO()):
+            parsed = tyro.cli(MPCOptions, args=[flag, value], console_outputs=False)
+    except SystemExit:
         raise ValueError(f"MPC option {key}: cannot parse {value!r}") from None
-    return value
+    return getattr(parsed, key)
 
 
 @dataclass
@@ -207,13 +214,15 @@ class _Stats:
 
 
 class PianoCost:
-    """The MPC cost of piano states, from a :class:`pianist.env.PianoEnv`'s goal and fingering.
+    """The MPC cost of piano states, from an environment's goal and fingering.
 
     ``stage_costs`` works on any batch of states, so the same function scores rollouts and the
     real environment.
     """
 
-    def __init__(self, env: Any, key_weight: float = 1.0, finger_weight: float = 1.0) -> None:
+    def __init__(
+        self, env: ControlHandle, key_weight: float = 1.0, finger_weight: float = 1.0
+    ) -> None:
         goal = env.goal
         self.key_weight = key_weight
         self.finger_weight = finger_weight
@@ -273,7 +282,7 @@ class PianoCost:
         return self.key_weight * key_term + self.finger_weight * finger_term
 
 
-class PredictiveSampling:
+class PredictiveSampling(BaseController):
     """Predictive-sampling MPC controller (see the module docstring).
 
     Use like any controller: ``reset(env, seed)``, then ``act(observation)`` once per step of
@@ -289,12 +298,12 @@ class PredictiveSampling:
     # ----------------------------------------------------------------------------- set-up
 
     def reset(self, env: gym.Env, seed: int | None = None) -> None:
-        base = env.unwrapped
+        handle = control_handle(env)
         o = self.options
-        self.env = base
-        self.model: mujoco.MjModel = base.model
-        self.data: mujoco.MjData = base.data
-        self.control_dt = float(base.config.control_timestep_s)
+        self.handle = handle
+        self.model: mujoco.MjModel = handle.model
+        self.data: mujoco.MjData = handle.data
+        self.control_dt = float(handle.control_timestep_s)
         ratio = self.control_dt / o.planning_timestep_s
         if abs(ratio - round(ratio)) > 1e-6:
             raise ValueError(
@@ -302,8 +311,8 @@ class PredictiveSampling:
                 f"planning_timestep_s {o.planning_timestep_s}"
             )
         self._rollout_steps_per_control = round(ratio)
-        self.cost = PianoCost(base, o.key_weight, o.finger_weight)
-        self._build_planning_model(base)
+        self.cost = PianoCost(handle, o.key_weight, o.finger_weight)
+        self._build_planning_model(handle)
         self._setup_plan()
         self._setup_rollout_buffers()
         self._rng = np.random.default_rng(o.seed if o.seed is not None else seed)
@@ -315,7 +324,7 @@ class PredictiveSampling:
         self.last_costs = np.zeros(0)
         self._stats = _Stats()
 
-    def _build_planning_model(self, env: Any) -> None:
+    def _build_planning_model(self, env: ControlHandle) -> None:
         """The scene compiled again with position sensors for the cost, at the planning step."""
         o, model, scene = self.options, self.model, env.scene
         spec = build_spec(scene.options, key_history=env.config.substeps)
@@ -455,7 +464,7 @@ class PredictiveSampling:
         # Rounded as the float32 actions that act() returns, so the first control step of a
         # rollout is bit for bit what the environment will do.
         actions = (self._control_weights @ knots).astype(np.float32)  # (B, H + 1, nu)
-        self._ctrl[:B] = action_to_ctrl(actions, self.model.actuator_ctrlrange)
+        self._ctrl[:B] = self.handle.action_to_ctrl(actions)
         start = time.perf_counter()
         self._pool.rollout(  # type: ignore[union-attr]
             self._models[:B],
@@ -472,7 +481,7 @@ class PredictiveSampling:
         self._stats.rollout_steps += B * (H + 1)
         # Sensors are computed at the start of a step: row j + 1 measures the state after step j.
         sensors = self._sensor_out[:B, 1:]
-        frames = self.env.step_index + self._control_index[:H]
+        frames = self.handle.step_index + self._control_index[:H]
         return self.cost.stage_costs(
             frames,
             sensors[..., self._key_adr],

@@ -23,6 +23,7 @@ Each control step it
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import gymnasium as gym
 import mujoco
@@ -30,7 +31,12 @@ import numpy as np
 import scipy.linalg
 import scipy.spatial
 
+from pianist.control.base import BaseController
+from pianist.env.handle import control_handle
 from pianist.sim import constants as C
+
+if TYPE_CHECKING:
+    from pianist.music import Song
 
 FINGERS_PER_HAND = 5
 FINGER_PREFIXES = ("TH", "FF", "MF", "RF", "LF")
@@ -170,14 +176,21 @@ class PlannerConfig:
     """Largest change of one joint in one IK iteration."""
 
 
-class IKPlanner:
+#: Environment options the planner plays best with: the forearm's height slide added. In the
+#: paper's action space the Shadow thumb cannot press a white key: with the forearm at its home
+#: height its fingertip capsule stops ~1.5 mm above the depth at which a key sounds, even with
+#: the wrist flexed (measured by sampling every thumb and wrist angle).
+ENV_OPTIONS: dict[str, Any] = {"forearm_dofs": ("tx", "ty", "tz")}
+
+
+class IKPlanner(BaseController):
     """Plays the song of a :class:`pianist.env.PianoEnv` from its goal frames and fingering.
 
     Use like any controller: ``reset(env)``, then ``act(observation)`` each step. Needs every
     note fingered and the ``tx`` forearm slide; works with the reduced or the full action
     space and with one or two hands. Without the ``tz`` slide (the paper's scene) the wrist is
-    flexed so the fingers reach, but the thumb cannot press a white key at all: use
-    :func:`planner_env_options`.
+    flexed so the fingers reach, but the thumb cannot press a white key at all: it declares
+    the slide in :meth:`env_options` (:data:`ENV_OPTIONS`).
     """
 
     def __init__(self, config: PlannerConfig | None = None) -> None:
@@ -185,18 +198,22 @@ class IKPlanner:
 
     # ----------------------------------------------------------------------------- set-up
 
+    def env_options(self, song: Song | None = None) -> dict[str, Any]:
+        """The environment the planner plays in (:data:`ENV_OPTIONS`), whatever the song."""
+        return dict(ENV_OPTIONS)
+
     def reset(self, env: gym.Env, seed: int | None = None) -> None:
-        base = env.unwrapped
-        goal = base.goal
+        handle = control_handle(env)
+        goal = handle.goal
         if np.any(goal.keys & (goal.fingers < 0)):
             raise ValueError(
                 "the planner needs a finger for every note; this song has unfingered notes"
             )
-        self.env = base
-        self.model: mujoco.MjModel = base.model
+        self.handle = handle
+        self.model: mujoco.MjModel = handle.model
         self.scratch = mujoco.MjData(self.model)
         self.goal = goal
-        self.dt = base.config.control_timestep_s
+        self.dt = handle.control_timestep_s
         cfg, m = self.config, self.model
         mujoco.mj_resetData(m, self.scratch)
         mujoco.mj_kinematics(m, self.scratch)
@@ -206,18 +223,18 @@ class IKPlanner:
             C.WHITE_KEY_HEIGHT_M + C.BLACK_KEY_TOP_ABOVE_WHITE_M,
             C.WHITE_KEY_HEIGHT_M,
         )
-        self.key_point = self.scratch.site_xpos[base.scene.key_sites].copy()
+        self.key_point = self.scratch.site_xpos[handle.scene.key_sites].copy()
         self.key_point[:, 0] = np.where(C.BLACK_KEY_MASK, cfg.black_press_x_m, cfg.white_press_x_m)
         self.key_depth = np.where(
             C.BLACK_KEY_MASK, cfg.black_press_depth_m, cfg.white_press_depth_m
         )
-        self.key_qpos = base.scene.key_qpos
+        self.key_qpos = handle.scene.key_qpos
         self.key_threshold = (
             np.where(C.BLACK_KEY_MASK, C.BLACK_KEY_MAX_ANGLE_RAD, C.WHITE_KEY_MAX_ANGLE_RAD)
             - C.KEY_ACTIVATION_THRESHOLD_RAD
         )
         rng = np.random.default_rng(0)  # the posture samples do not depend on the episode
-        self.hands = [_Hand(m, hand) for hand in base.scene.hands]
+        self.hands = [_Hand(m, hand) for hand in handle.scene.hands]
         _sample_postures(m, self.scratch, self.hands, cfg, rng)
         for hand in self.hands:
             hand.plan_forearm(goal, self.key_point, cfg.lazy_m, cfg.skip_out_of_reach)
@@ -229,39 +246,28 @@ class IKPlanner:
     # ----------------------------------------------------------------------------- acting
 
     def act(self, observation: object = None) -> np.ndarray:
-        cfg, env, m, scratch = self.config, self.env, self.model, self.scratch
+        cfg, handle, m, scratch = self.config, self.handle, self.model, self.scratch
         T = self.goal.num_frames
-        t = min(env.step_index, T - 1)  # an episode that ran to its end: hold the last frame
-        ctrl = np.array(env.data.ctrl)
-        scratch.qpos[:] = env.data.qpos
+        t = min(handle.step_index, T - 1)  # an episode that ran to its end: hold the last frame
+        ctrl = np.array(handle.data.ctrl)
+        scratch.qpos[:] = handle.data.qpos
         press_frame = min(t + cfg.press_lead_frames, T - 1)
         hover_end = min(T, press_frame + 1 + round(cfg.hover_lead_s / self.dt))
         for hand in self.hands:
-            hand.command_forearm(ctrl, env.data, t, cfg)
+            hand.command_forearm(ctrl, handle.data, t, cfg)
             hand.set_wrist(scratch, ctrl, cfg)
             # The fingers are solved for where the moving forearm will be a little later:
             # their servos lag behind their commands by about a control step.
-            scratch.qpos[hand.tx_qpos] += cfg.forearm_lead_s * env.data.qvel[hand.tx_dof]
+            scratch.qpos[hand.tx_qpos] += cfg.forearm_lead_s * handle.data.qvel[hand.tx_dof]
         mujoco.mj_kinematics(m, scratch)
         for hand in self.hands:
             targets, active = hand.fingertip_targets(self, t, hover_end)
             hand.solve(m, scratch, targets, active, cfg)
             ctrl[hand.finger_actuators] = hand.finger_controls(scratch)
         action = np.empty(m.nu + 1)
-        low, high = m.actuator_ctrlrange.T
-        action[:-1] = np.clip(2 * (ctrl - low) / (high - low) - 1, -1, 1)
+        action[:-1] = handle.ctrl_to_action(ctrl)
         action[-1] = 1.0 if self.goal.sustain[press_frame] else -1.0
         return action.astype(np.float32)
-
-
-def planner_env_options() -> dict[str, object]:
-    """Environment options the planner plays best with: the forearm's height slide added.
-
-    In the paper's action space the Shadow thumb cannot press a white key: with the forearm at
-    its home height its fingertip capsule stops ~1.5 mm above the depth at which a key sounds,
-    even with the wrist flexed (measured by sampling every thumb and wrist angle).
-    """
-    return {"forearm_dofs": ("tx", "ty", "tz")}
 
 
 class _Hand:
@@ -524,7 +530,7 @@ class _Hand:
         cfg, goal = planner.config, planner.goal
         radius = C.FINGERTIP_CAPSULE_RADIUS_M
         origin = planner.scratch.xpos[self.forearm_body]
-        real_tips = planner.env.data.site_xpos[self.sites]
+        real_tips = planner.handle.data.site_xpos[self.sites]
         targets = self.lift_tips + origin
         active = np.zeros(FINGERS_PER_HAND, dtype=bool)
         self.pressing = np.zeros(FINGERS_PER_HAND, dtype=bool)
@@ -541,7 +547,7 @@ class _Hand:
             targets[far] = self.lift_tips[far] + origin
             return targets - origin, active
         lead = min(now + cfg.press_lead_frames, goal.num_frames - 1)
-        key_down = planner.env.data.qpos[planner.key_qpos] >= planner.key_threshold
+        key_down = planner.handle.data.qpos[planner.key_qpos] >= planner.key_threshold
         hovering = np.zeros(FINGERS_PER_HAND, dtype=bool)
         pressed_key = np.full(FINGERS_PER_HAND, -1)
         for frame in (now, lead):

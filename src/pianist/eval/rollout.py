@@ -7,6 +7,7 @@ from typing import Any
 
 import numpy as np
 
+from pianist.env.handle import control_handle
 from pianist.eval.episode import Episode
 
 
@@ -16,7 +17,7 @@ def run_episode(
     """Play one full episode.
 
     Args:
-        env: a :class:`pianist.env.PianoEnv` (or anything with its step/info contract).
+        env: a :class:`pianist.env.PianoEnv` or a wrapper around one.
         controller: an object with ``reset(env, seed)`` and ``act(observation) -> action``.
         seed: passed to ``env.reset`` and to the controller.
         progress: show a progress bar on stderr with the speed as a multiple of real time
@@ -24,13 +25,14 @@ def run_episode(
     Returns:
         The :class:`Episode` record.
     """
+    handle = control_handle(env)
     observation, _ = env.reset(seed=seed)
     controller.reset(env, seed=seed)
     actions, active, sustain, goal_keys, goal_sustain, rewards = [], [], [], [], [], []
     terms: dict[str, list[float]] = {}
     events: list[tuple[float, int, bool]] = []
-    qpos = [env.data.qpos.copy()]
-    bar = _progress_bar(env) if progress else None
+    qpos = [handle.data.qpos.copy()]
+    bar = _progress_bar(handle.num_steps) if progress else None
     start = time.perf_counter()
     done = False
     while not done:
@@ -46,12 +48,12 @@ def run_episode(
         for name, value in info["reward_terms"].items():
             terms.setdefault(name, []).append(value)
         events.extend(info["note_events"])
-        qpos.append(env.data.qpos.copy())
+        qpos.append(handle.data.qpos.copy())
         if bar is not None:
             bar.update(1)
             if bar.n % 20 == 0 or done:
                 elapsed = time.perf_counter() - start
-                simulated = bar.n * env.config.control_timestep_s
+                simulated = bar.n * handle.control_timestep_s
                 bar.set_postfix_str(f"{simulated / max(elapsed, 1e-9):.1f}x real time")
     if bar is not None:
         bar.close()
@@ -64,15 +66,14 @@ def run_episode(
         rewards=np.array(rewards),
         reward_terms={name: np.array(values) for name, values in terms.items()},
         note_events=np.array(events, dtype=float).reshape(-1, 3),
-        control_timestep_s=env.config.control_timestep_s,
-        end_time_s=float(env.data.time),
+        control_timestep_s=handle.control_timestep_s,
+        end_time_s=float(handle.data.time),
         qpos=np.stack(qpos),
-        lead_in_steps=int(getattr(env.config, "lead_in_steps", 0)),
+        lead_in_steps=handle.config.lead_in_steps,
     )
 
 
-def _progress_bar(env: Any) -> Any:
+def _progress_bar(total: int) -> Any:
     from tqdm import tqdm
 
-    total = getattr(env.unwrapped, "num_steps", None)
     return tqdm(total=total, unit="step", desc="playing", leave=False, dynamic_ncols=True)

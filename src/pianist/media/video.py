@@ -85,7 +85,8 @@ def render_episode(
     ~35-45 ms to render and encode on a 2-core CPU with software EGL (the first one ~0.4 s).
 
     Args:
-        env: the :class:`pianist.env.PianoEnv` that played the episode (its ``model`` and
+        env: the :class:`pianist.env.PianoEnv` that played the episode, or its
+            :class:`pianist.env.handle.ControlHandle` (its ``model`` and
             ``scene`` are read, never changed).
         episode: a recorded episode with ``qpos`` (as :func:`pianist.eval.run_episode` makes).
         path: the .mp4 file to write, atomically; its folder must exist.

@@ -1,0 +1,162 @@
+"""Playing a song with a controller: the one path the CLI, evaluation and benchmarks share.
+
+:func:`make_env` builds the environment a controller plays in (the one place where a
+controller's declared environment options are applied); :func:`play` loads the song, plays
+one episode and collects the metrics. Writing a result's files is
+:func:`pianist.media.results.write_result`.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+import gymnasium as gym
+
+from pianist.env import PianoEnv
+from pianist.env.handle import control_handle
+from pianist.eval.episode import Episode
+from pianist.eval.rollout import run_episode
+from pianist.music import Song, load_song
+
+Fingering = Literal["auto", "file", "robot", "none"]
+
+
+@dataclass
+class PlayResult:
+    """One played episode and what it was played with.
+
+    Attributes:
+        song: the song as played (its fingering resolved).
+        episode: the episode record (actions, keys, events, qpos over its T steps).
+        metrics: the episode's metrics, the controller's own statistics and settings, the
+            options below, ``wall_seconds`` and ``realtime_factor`` (simulated / wall time).
+        env: the environment it was played in (for rendering the episode again).
+        env_options: the :class:`PianoEnv` options used, the controller's included.
+    """
+
+    song: Song
+    episode: Episode
+    metrics: dict[str, Any]
+    env: gym.Env
+    env_options: dict[str, Any] = field(default_factory=dict)
+
+
+def controller_env_options(controller: Any, song: Song) -> dict[str, Any]:
+    """The environment options ``controller`` declares for ``song`` (none if it declares
+    nothing; see :class:`pianist.control.BaseController`)."""
+    declare = getattr(controller, "env_options", None)
+    return dict(declare(song)) if declare is not None else {}
+
+
+def resolve_env_options(controller: Any, song: Song, **options: Any) -> dict[str, Any]:
+    """The user's environment ``options`` with the controller's declared ones applied.
+
+    Options given as None are left to the environment's defaults. A declared option wins over
+    a default; a different explicit choice is refused.
+
+    Raises:
+        ValueError: an explicit option contradicts what the controller needs.
+    """
+    chosen = {k: v for k, v in options.items() if v is not None}
+    declared = controller_env_options(controller, song)
+    for key, value in declared.items():
+        if key in chosen and _normalise(chosen[key]) != _normalise(value):
+            name = type(controller).__name__
+            raise ValueError(
+                f"{name} plays with {key}={value!r}; it cannot play with {key}={chosen[key]!r}"
+            )
+    return {**chosen, **declared}
+
+
+def make_env(song: Song | str | Path, controller: Any, **options: Any) -> gym.Env:
+    """The environment ``controller`` plays ``song`` in.
+
+    Args:
+        song: a Song (or a name or file, loaded with its own fingering).
+        controller: any controller; its ``env_options(song)`` are applied over ``options`` and
+            its ``wrap_env(env)``, if it has one, wraps the result (a trained policy observes
+            its task's extra entries).
+        options: :class:`PianoEnv` keyword options; None values mean the default.
+    """
+    if not isinstance(song, Song):
+        song = load_song(song)
+    env: gym.Env = PianoEnv(song, **resolve_env_options(controller, song, **options))
+    wrap = getattr(controller, "wrap_env", None)
+    return wrap(env) if wrap is not None else env
+
+
+def play(
+    song: Song | str | Path,
+    controller: Any,
+    *,
+    physics: str | None = None,
+    fingering: Fingering = "auto",
+    initial_buffer_s: float = 0.0,
+    seed: int | None = 0,
+    env_options: dict[str, Any] | None = None,
+    progress: bool = False,
+) -> PlayResult:
+    """Play ``song`` once with ``controller`` and score it.
+
+    Args:
+        song: a built-in song name, a MIDI or PIG file, or a Song.
+        controller: any controller (``reset(env, seed)``, ``act(observation)``).
+        physics: "faithful" or "fast"; None: the controller's own, else faithful.
+        fingering: how a song given by name or file is fingered
+            (:func:`pianist.music.load_song`).
+        initial_buffer_s: seconds of silence before the song (>= 0).
+        seed: the episode's seed (environment and controller).
+        env_options: further :class:`PianoEnv` options.
+        progress: show a progress bar on stderr.
+    Raises:
+        ValueError: a negative lead-in, or options the controller cannot play with.
+        MusicError: the song cannot be loaded.
+    """
+    if not (math.isfinite(initial_buffer_s) and initial_buffer_s >= 0):
+        raise ValueError(f"initial_buffer_s must be >= 0 seconds, not {initial_buffer_s}")
+    if not isinstance(song, Song):
+        song = load_song(song, fingering=fingering)
+    options: dict[str, Any] = {"physics": physics, **(env_options or {})}
+    if initial_buffer_s:
+        options["initial_buffer_s"] = initial_buffer_s
+    if fingering == "none":
+        # Without labels the fingering reward matches fingertips to keys (facts section 3).
+        options.setdefault("fingering_reward", "optimal")
+    resolved = resolve_env_options(controller, song, **options)
+    env = make_env(song, controller, **resolved)
+    resolved.setdefault("physics", control_handle(env).config.scene.physics)
+
+    start = time.perf_counter()
+    try:
+        episode = run_episode(env, controller, seed=seed, progress=progress)
+        wall = time.perf_counter() - start
+        metrics: dict[str, Any] = episode.metrics()
+        # Planning controllers report their own timing and settings.
+        stats = getattr(controller, "stats", None)
+        metrics.update(stats() if stats is not None else {})
+        settings = getattr(controller, "options_dict", None)
+        if settings is not None and settings():
+            metrics["controller_options"] = settings()
+    finally:
+        close = getattr(controller, "close", None)
+        if close is not None:
+            close()
+    metrics.update(
+        song=song.name,
+        fingering=fingering,
+        physics=resolved["physics"],
+        seed=seed,
+        env_options={k: _normalise(v) for k, v in resolved.items()},
+        wall_seconds=wall,
+        realtime_factor=metrics["seconds"] / wall if wall > 0 else float("inf"),
+    )
+    return PlayResult(song, episode, metrics, env, resolved)
+
+
+def _normalise(value: Any) -> Any:
+    """Tuples as lists, so options compare and serialise the same from Python and JSON."""
+    return list(value) if isinstance(value, tuple) else value

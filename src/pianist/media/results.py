@@ -1,0 +1,163 @@
+"""Writing a played episode's files: the one writer the CLI and scripts share.
+
+:func:`write_result` writes a :class:`pianist.eval.session.PlayResult` into a folder: the
+metrics, the performance as MIDI, the actions, the piano roll and, on request, the audio of
+the performance and of the score and a video. The files are written into a temporary folder
+that replaces ``out`` whole once every file is complete, so an interrupted or failed write
+never leaves a mix of two runs (or half a run) in ``out``.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from pianist.env.handle import control_handle
+from pianist.eval.session import PlayResult
+from pianist.files import atomic_dir, save_npy_atomic, write_json_atomic
+from pianist.media.errors import MediaError
+from pianist.music import write_midi
+from pianist.music.transforms import delay
+
+METRICS = "metrics.json"
+PERFORMANCE_MIDI = "performance.mid"
+ACTIONS = "actions.npy"
+PIANOROLL = "pianoroll.png"
+PERFORMANCE_WAV = "performance.wav"
+SCORE_WAV = "score.wav"
+VIDEO = "performance.mp4"
+#: Every file a result folder may hold: a folder holding anything else is not replaced.
+RESULT_FILES = frozenset(
+    {METRICS, PERFORMANCE_MIDI, ACTIONS, PIANOROLL, PERFORMANCE_WAV, SCORE_WAV, VIDEO}
+)
+
+
+@dataclass(frozen=True)
+class MediaOptions:
+    """What to write beside the metrics, MIDI, actions and piano roll."""
+
+    audio: bool = True
+    """performance.wav and score.wav."""
+    video: bool = False
+    """performance.mp4 (with the performance's audio when ``audio``)."""
+    camera: str = "closeup"
+    fps: float = 30.0
+    size: tuple[int, int] = (480, 640)
+    """Video frame (height, width) in pixels."""
+    soundfont: Path | None = None
+    """An .sf2/.sf3 SoundFont (default: the General MIDI one pretty_midi ships)."""
+    progress: bool = False
+    """Show the video's progress bar on stderr."""
+
+
+def check_output_folder(out: str | os.PathLike[str]) -> None:
+    """Refuse a result folder that cannot be written, before a long episode.
+
+    ``out`` may be missing (it is created at the end, with its parents), a result folder of an
+    earlier run (replaced whole) or empty; a folder holding other files is refused, so that
+    replacing it cannot delete them.
+
+    Raises:
+        MediaError: one line naming the problem.
+    """
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise MediaError(f"output directory {out} is a file")
+    if out.is_dir():
+        foreign = sorted(p.name for p in out.iterdir() if p.name not in RESULT_FILES)
+        if foreign:
+            raise MediaError(
+                f"output directory {out} holds other files ({', '.join(foreign[:3])}"
+                f"{', ...' if len(foreign) > 3 else ''}); choose a new or empty folder"
+            )
+    ancestor = out if out.is_dir() else out.parent
+    while not ancestor.exists():
+        ancestor = ancestor.parent
+    if not ancestor.is_dir():
+        raise MediaError(f"output directory {out} cannot be created: {ancestor} is a file")
+    parent = out.parent if out.is_dir() else ancestor
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise MediaError(f"output directory {out} is not writable ({parent} is read-only)")
+
+
+def check_media_options(result_env: Any, media: MediaOptions) -> None:
+    """Refuse bad media options before a long episode (one-line :class:`MediaError`).
+
+    ``result_env``: the environment the episode will be played in (for its cameras).
+    """
+    if media.audio or media.video:
+        from pianist.media.audio import check_soundfont
+
+        check_soundfont(media.soundfont)
+    if media.video:
+        from pianist.media.video import check_video_options
+
+        check_video_options(control_handle(result_env).model, media.camera, media.fps, media.size)
+
+
+def write_result(
+    result: PlayResult,
+    out: str | os.PathLike[str],
+    media: MediaOptions | None = None,
+    *,
+    title: str | None = None,
+    extra_metrics: dict[str, Any] | None = None,
+) -> list[Path]:
+    """Write ``result``'s files into the folder ``out`` (replaced whole, see module docstring).
+
+    Args:
+        result: what :func:`pianist.eval.session.play` returned.
+        out: the folder; created with its parents if missing.
+        media: which media to write (default: audio, no video).
+        title: the piano roll's title.
+        extra_metrics: more entries for metrics.json (e.g. the command's own arguments).
+    Returns:
+        The paths written, in ``out``.
+    Raises:
+        MediaError: the folder cannot be written, or a medium fails.
+    """
+    media = media or MediaOptions()
+    out = Path(out)
+    check_output_folder(out)
+    metrics = {**result.metrics, **(extra_metrics or {})}
+    with atomic_dir(out, error=MediaError) as tmp:
+        save_npy_atomic(result.episode.actions, tmp / ACTIONS)
+        write_midi(result.episode.performance(), tmp / PERFORMANCE_MIDI)
+        _write_media(result, tmp, media, title)
+        write_json_atomic(metrics, tmp / METRICS)
+        names = sorted(p.name for p in tmp.iterdir())
+    return [out / name for name in names]
+
+
+def _write_media(result: PlayResult, folder: Path, media: MediaOptions, title: str | None) -> None:
+    from pianist.media.audio import synthesize_events, synthesize_song, write_wav
+    from pianist.media.plots import plot_pianoroll
+
+    handle = control_handle(result.env)
+    episode = result.episode
+    plot_pianoroll(
+        episode, folder / PIANOROLL, title=title or "", weights=handle.config.rewards.as_dict()
+    )
+    performance = None
+    if media.audio:
+        duration = episode.num_steps * episode.control_timestep_s
+        performance = synthesize_events(episode.note_events, duration, soundfont=media.soundfont)
+        write_wav(performance, folder / PERFORMANCE_WAV)
+        # The score starts where the performance's song does: after the lead-in.
+        score = delay(result.song, episode.lead_in_steps * episode.control_timestep_s)
+        write_wav(synthesize_song(score, soundfont=media.soundfont), folder / SCORE_WAV)
+    if media.video:
+        from pianist.media.video import render_episode
+
+        render_episode(
+            handle,
+            episode,
+            folder / VIDEO,
+            camera=media.camera,
+            fps=media.fps,
+            size=media.size,
+            audio=performance,
+            progress=media.progress,
+        )
