@@ -330,3 +330,21 @@ def test_a_shift_holds_the_keys_before_it_as_long_as_it_can():
     assert held == {0: True, 1: False}
     with pytest.raises(ValueError, match="shift_lead_frames"):
         IKPlanner(PlannerConfig(shift_lead_frames=2)).reset(env)
+
+
+def test_posture_samples_are_made_once_per_scene_and_reused_exactly(monkeypatch):
+    from pianist.control import planner as module
+
+    monkeypatch.setattr(module, "_POSTURES", {})
+    calls = []
+    sample = module._sample_postures
+    monkeypatch.setattr(module, "_sample_postures", lambda *a: calls.append(1) or sample(*a))
+    song = Song(tuple(Note(60 + 2 * i, 0.2 * i, 0.2 * i + 0.15, finger=i) for i in range(5)))
+    first = _play(song)[1].actions  # samples the postures
+    again = _play(song)[1].actions  # a new environment and planner of the same scene
+    assert len(calls) == 1 and len(module._POSTURES) == 1
+    np.testing.assert_array_equal(first, again)
+    # A scene built otherwise (one hand) has postures of its own.
+    env = PianoEnv(song, physics="fast", hands="right", **ENV_OPTIONS)
+    run_episode(env, IKPlanner(), seed=0)
+    assert len(calls) == 2 and len(module._POSTURES) == 2

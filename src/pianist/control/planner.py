@@ -34,6 +34,7 @@ import scipy.spatial
 from pianist.control.base import BaseController
 from pianist.env.handle import control_handle
 from pianist.sim import constants as C
+from pianist.sim.scene import SceneOptions
 
 if TYPE_CHECKING:
     from pianist.music import Song
@@ -233,9 +234,8 @@ class IKPlanner(BaseController):
             np.where(C.BLACK_KEY_MASK, C.BLACK_KEY_MAX_ANGLE_RAD, C.WHITE_KEY_MAX_ANGLE_RAD)
             - C.KEY_ACTIVATION_THRESHOLD_RAD
         )
-        rng = np.random.default_rng(0)  # the posture samples do not depend on the episode
         self.hands = [_Hand(m, hand) for hand in handle.scene.hands]
-        _sample_postures(m, self.scratch, self.hands, cfg, rng)
+        _use_postures(m, self.scratch, self.hands, cfg, handle.scene.options)
         for hand in self.hands:
             hand.plan_forearm(goal, self.key_point, cfg.lazy_m, cfg.skip_out_of_reach)
         if len(self.hands) == 2:
@@ -702,35 +702,72 @@ class _Finger:
         """(3, dof) fingertip Jacobian in actuator space from the full (3, nv) one."""
         return jacp[:, self._dofs] @ self._mix
 
-    def index_samples(self, samples: np.ndarray, tips: np.ndarray) -> None:
-        """Keep the sampled postures (S, dof) and their fingertips (S, 3), forearm frame."""
-        self.samples, self.sample_tips = samples, tips
-        self._tree = scipy.spatial.cKDTree(tips)
+    def index_samples(
+        self, samples: np.ndarray, tips: np.ndarray, tree: scipy.spatial.cKDTree
+    ) -> None:
+        """Keep the sampled postures (S, dof), their fingertips (S, 3) in the forearm frame and
+        a k-d tree over the fingertips (all shared between planners: read only)."""
+        self.samples, self.sample_tips, self._tree = samples, tips, tree
 
     def nearest(self, target: np.ndarray) -> int:
         """Index of the sampled posture whose fingertip is closest to ``target`` (forearm frame)."""
         return int(self._tree.query(target)[1])
 
 
+#: Posture samples of every finger, (samples (S, dof), fingertips (S, 3)) per finger, keyed by
+#: the scene's options (the model is built from them deterministically) and the planner's
+#: config: sampling takes ~0.15 s, most of a short episode's reset, and is the same each time.
+_Postures = list[tuple[np.ndarray, np.ndarray, scipy.spatial.cKDTree]]
+_POSTURES: dict[tuple[SceneOptions, PlannerConfig], _Postures] = {}
+_POSTURES_KEPT = 8  # scenes x configs kept per process (~2 MB each)
+
+
+def _use_postures(
+    m, data, hands: list[_Hand], cfg: PlannerConfig, scene_options: SceneOptions
+) -> None:
+    """Give every finger its posture samples (sampled once per scene and config, see
+    :data:`_POSTURES`), then choose each hand's lifted posture."""
+    key = (scene_options, cfg)
+    samples = _POSTURES.get(key)
+    if samples is None:
+        # The samples do not depend on the episode: always the same generator seed.
+        samples = _sample_postures(m, data, hands, cfg, np.random.default_rng(0))
+        if len(_POSTURES) >= _POSTURES_KEPT:
+            del _POSTURES[next(iter(_POSTURES))]
+        _POSTURES[key] = samples
+    fingers = [finger for hand in hands for finger in hand.fingers]
+    for finger, (angles, tips, tree) in zip(fingers, samples, strict=True):
+        finger.index_samples(angles, tips, tree)
+    for hand in hands:
+        hand.choose_lift_posture(m, data, cfg)
+
+
 def _sample_postures(
     m, data, hands: list[_Hand], cfg: PlannerConfig, rng: np.random.Generator
-) -> None:
+) -> _Postures:
     """Fingertip positions relative to the forearm for random postures of every finger.
 
     Fingers (and hands) share no joints, so one kinematics pass samples all of them at once;
     the joint positions of every sample are laid out in one array first so that the loop
     only copies a row and runs ``mj_kinematics``.
+
+    Returns:
+        Per finger, right hand then left, thumb..little: postures (S, dof) in rad, fingertips
+        (S, 3) in m relative to the forearm body, and a k-d tree over the fingertips; the
+        arrays are read only.
     """
     mujoco.mj_resetData(m, data)
     for hand in hands:
         hand.lower(data, cfg)
         hand.set_wrist(data, None, cfg)
     batch = np.tile(data.qpos, (cfg.samples, 1))
+    postures = []
     for hand in hands:
         for finger in hand.fingers:
-            finger.samples = rng.uniform(finger.low, finger.high, (cfg.samples, finger.dof))
+            angles = rng.uniform(finger.low, finger.high, (cfg.samples, finger.dof))
             for i, (qpos, share) in enumerate(zip(finger.qpos, finger.share, strict=True)):
-                batch[:, qpos] = finger.samples[:, i : i + 1] * share
+                batch[:, qpos] = angles[:, i : i + 1] * share
+            postures.append(angles)
     sites = np.concatenate([hand.sites for hand in hands])
     origins = np.repeat([hand.forearm_body for hand in hands], FINGERS_PER_HAND)
     tips = np.empty((cfg.samples, len(sites), 3))
@@ -738,11 +775,13 @@ def _sample_postures(
         data.qpos[:] = batch[s]
         mujoco.mj_kinematics(m, data)
         tips[s] = data.site_xpos[sites] - data.xpos[origins]
-    for h, hand in enumerate(hands):
-        for f, finger in enumerate(hand.fingers):
-            finger.index_samples(finger.samples, tips[:, h * FINGERS_PER_HAND + f])
-    for hand in hands:
-        hand.choose_lift_posture(m, data, cfg)
+    out = []
+    for i, angles in enumerate(postures):
+        finger_tips = tips[:, i].copy()  # not a view of this call's scratch array
+        angles.setflags(write=False)
+        finger_tips.setflags(write=False)
+        out.append((angles, finger_tips, scipy.spatial.cKDTree(finger_tips)))
+    return out
 
 
 class _Servo:
