@@ -291,8 +291,9 @@ def test_train_resume_eval_and_play_a_policy(tmp_path):
     assert main([*args, "--out", str(run_dir), "--no-progress"]) == 0
     assert (run_dir / "config.json").is_file() and (run_dir / "log.jsonl").is_file()
     # Resuming continues to a larger total and says from where.
-    result = run("train", "--resume", str(run_dir), "--steps", "160", "--no-progress")
+    result = run("train", "--resume", str(run_dir), "--steps", "160")
     assert result.returncode == 0, result.stderr
+    assert not result.stderr.strip(), "a progress bar was drawn into a pipe"
     assert "resumed" in result.stdout and "step 160" in result.stdout
     # The best evaluated policy is kept beside the run and plays like one.
     assert "best evaluation: F1" in result.stdout and (run_dir / "best").is_dir()

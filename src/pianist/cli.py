@@ -248,7 +248,8 @@ class Train:
     resume: Path | None = None
     """Continue the run in this directory from its newest checkpoint."""
     progress: bool = True
-    """Show a progress bar with steps/s and the latest F1."""
+    """Show a progress bar with steps/s and the latest F1 (on a terminal only: a redrawn bar
+    would write thousands of lines into a pipe or log file)."""
 
     def run(self) -> None:
         from pianist.agents import PRESETS, train
@@ -257,12 +258,13 @@ class Train:
         if self.steps is not None and self.steps < 1:
             raise CliError(f"--steps must be at least 1, not {self.steps}")
         _require_jax()
+        show_bar = self.progress and sys.stderr.isatty()
         if self.resume is not None:
             steps = (
                 self.steps if self.steps is not None else int(read_run_config(self.resume)["steps"])
             )
             result = train(
-                None, None, steps, self.resume, resume=True, progress=self.progress, message=_out
+                None, None, steps, self.resume, resume=True, progress=show_bar, message=_out
             )
         else:
             if self.song is None:
@@ -275,7 +277,7 @@ class Train:
                 self.preset,
                 self.steps if self.steps is not None else 1_000_000,
                 self.out,
-                progress=self.progress,
+                progress=show_bar,
                 message=_out,
             )
         f1 = result.last_eval.get("f1", float("nan"))
