@@ -353,3 +353,20 @@ def test_a_bad_lead_in_is_one_line(tmp_path, extra, message):
     result = run("play", "c-major-chords", "--out", str(tmp_path / "o"), *extra)
     assert result.returncode == 1 and message in result.stderr, result.stderr
     assert len(result.stderr.strip().splitlines()) == 1
+
+
+def test_simulation_warnings_do_not_leave_a_log_in_the_checkout(request):
+    """MuJoCo appends its warnings to MUJOCO_LOG.TXT in the working directory; the suite runs
+    in a scratch one (conftest.py), so the log never lands where pytest was started."""
+    import mujoco
+
+    started_in = Path(request.config.invocation_params.dir)
+    assert Path.cwd() != started_in
+    had_log = (started_in / "MUJOCO_LOG.TXT").exists()
+    xml = '<mujoco><worldbody><body><freejoint/><geom size=".1"/></body></worldbody></mujoco>'
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+    data.qvel[:] = np.nan
+    mujoco.mj_step(model, data)  # "Nan, Inf or huge value in QVEL": written to the log
+    assert (Path.cwd() / "MUJOCO_LOG.TXT").is_file()
+    assert (started_in / "MUJOCO_LOG.TXT").exists() == had_log
