@@ -32,6 +32,16 @@ def test_songs_lists_builtins(capsys):
     assert "twinkle-twinkle" in out and "c-major-chords" in out
 
 
+def test_songs_explains_its_columns(capsys):
+    assert main(["songs", "--suite", "debug"]) == 0
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert lines[0].split() == ["name", "suite", "s", "notes", "n/s", "span", "poly"]
+    legend = lines[-1]
+    for text in ("s: duration in seconds", "n/s: notes per second", "span: widest hand span"):
+        assert text in legend
+    assert "semitones" in legend and "poly: most notes sounding at once" in legend
+
+
 def test_info_describes_a_song(capsys):
     assert main(["info", "c-major-chords"]) == 0
     out = capsys.readouterr().out
@@ -257,7 +267,7 @@ def test_unfingered_midi_is_fingered_automatically_unless_file_is_asked(tmp_path
 
 def test_songs_lists_the_open_library_with_difficulty(capsys):
     assert main(["songs", "--suite", "open-etude-12"]) == 0
-    rows = capsys.readouterr().out.strip().splitlines()[1:]
+    rows = capsys.readouterr().out.strip().splitlines()[1:-1]  # no header, no legend
     assert len(rows) == 12
     for row in rows:
         fields = row.split()

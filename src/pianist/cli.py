@@ -56,6 +56,11 @@ class Songs:
                     f"{name:40s} {suite:17s} {stats.duration_s:6.1f} {stats.num_notes:5d} "
                     f"{stats.notes_per_second:5.1f} {span:>4s} {stats.max_polyphony:4d}"
                 )
+        _out(
+            "s: duration in seconds; n/s: notes per second; span: widest hand span in "
+            "semitones (keys held together in one hand; - without hands); poly: most notes "
+            "sounding at once"
+        )
 
 
 @dataclass(frozen=True)
