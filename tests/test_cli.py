@@ -1,6 +1,8 @@
 """The pianist command line, run as users run it."""
 
 import json
+import os
+import re
 import subprocess
 import sys
 import wave
@@ -380,3 +382,24 @@ def test_simulation_warnings_do_not_leave_a_log_in_the_checkout(request):
     mujoco.mj_step(model, data)  # "Nan, Inf or huge value in QVEL": written to the log
     assert (Path.cwd() / "MUJOCO_LOG.TXT").is_file()
     assert (started_in / "MUJOCO_LOG.TXT").exists() == had_log
+
+
+@pytest.mark.parametrize("command", ["play", "info", "train", "eval", "import-pig"])
+def test_help_names_the_song_and_states_each_default_once(command):
+    result = subprocess.run(
+        [sys.executable, "-m", "pianist.cli", command, "--help"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        env={**os.environ, "COLUMNS": "200"},
+    )
+    assert result.returncode == 0
+    usage = result.stdout.splitlines()[0]
+    assert "STR" not in usage and "PATH" not in usage.split("]")[-1]
+    if command != "import-pig":
+        assert usage.endswith("SONG") or " SONG " in usage
+    # One block per option: each says its default once, and never "(default: None)".
+    blocks = re.split(r"│ (?=--)", result.stdout)
+    for block in blocks:
+        assert block.count("(default") <= 1, block
+    assert "(default: None)" not in result.stdout

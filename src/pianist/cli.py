@@ -20,6 +20,10 @@ class CliError(Exception):
     """A failure the user can fix; printed as one line."""
 
 
+# The song positional as --help shows it (tyro would show its type, STR).
+SongArg = Annotated[str, tyro.conf.arg(metavar="SONG")]
+
+
 @dataclass(frozen=True)
 class Songs:
     """List songs with their size and difficulty: duration, notes, notes/s, span, polyphony."""
@@ -68,10 +72,13 @@ class ImportPig:
     """Convert a copy of the PIG fingering dataset into songs (RoboPianist etude-12 and
     repertoire-150 names then resolve like built-in songs)."""
 
-    src: tyro.conf.Positional[Path]
+    src: tyro.conf.Positional[Annotated[Path, tyro.conf.arg(metavar="DIR")]]
     """The dataset folder (e.g. PianoFingeringDataset_v1.2, with FingeringFiles/ and List.csv)."""
-    dest: Path | None = None
-    """Where to write the songs (default: $PIANIST_DATA, else the XDG data folder)."""
+    dest: Annotated[
+        Path | None,
+        tyro.conf.arg(help_behavior_hint="(default: $PIANIST_DATA/pig, else the XDG data folder)"),
+    ] = None
+    """Where to write the songs."""
     strict: bool = True
     """Stop at the first unreadable file (else skip it and report it)."""
 
@@ -85,7 +92,7 @@ class ImportPig:
 class Info:
     """Describe a song: duration, notes, hands, fingering coverage, goal frames."""
 
-    song: tyro.conf.Positional[str]
+    song: tyro.conf.Positional[SongArg]
     """A built-in song name, a MIDI file (.mid) or a PIG fingering file (.txt)."""
 
     def run(self) -> None:
@@ -133,7 +140,7 @@ class Play:
     pianoroll.png and, with --video, performance.mp4 (the folder appears whole, or not at all).
     """
 
-    song: tyro.conf.Positional[str]
+    song: tyro.conf.Positional[SongArg]
     """A built-in song name, a MIDI file (.mid) or a PIG fingering file (.txt)."""
     controller: str = "planner"
     """planner; mpc (the paper's predictive sampling; mpc:tenth, or e.g.
@@ -148,9 +155,13 @@ class Play:
     out: Path = Path("out")
     """Output directory: created with the results once they are complete, or replaced whole
     if it holds an earlier run's results (a folder holding other files is refused)."""
-    physics: Literal["faithful", "fast"] | None = None
-    """Physics preset (default: faithful; a trained policy plays on its own)."""
+    physics: Annotated[
+        Literal["faithful", "fast"] | None,
+        tyro.conf.arg(help_behavior_hint="(default: faithful; a trained policy: its own)"),
+    ] = None
+    """Physics preset: faithful (the paper's simulation) or fast (cheaper contacts)."""
     seed: int = 0
+    """Seed of the episode (environment and controller)."""
     initial_buffer_s: float = 0.0
     """Seconds of silence before the song, for the hands to reach the first notes (the
     original's initial_buffer_time; 0, the benchmark's default, scores the cold start).
@@ -163,8 +174,11 @@ class Play:
     """Video frames per second."""
     size: tuple[int, int] = (480, 640)
     """Video frame height and width in pixels (even numbers)."""
-    soundfont: Path | None = None
-    """An .sf2/.sf3 SoundFont for the audio (default: the General MIDI one pretty_midi ships)."""
+    soundfont: Annotated[
+        Path | None,
+        tyro.conf.arg(help_behavior_hint="(default: the General MIDI one pretty_midi ships)"),
+    ] = None
+    """An .sf2/.sf3 SoundFont for the audio."""
     audio: bool = True
     """Write performance.wav and score.wav."""
 
@@ -241,16 +255,24 @@ class Play:
 class Train:
     """Train an agent on a song (SAC/DroQ in JAX): log, checkpoints and config go to --out."""
 
-    song: tyro.conf.Positional[str | None] = None
-    """A built-in song name, a MIDI file or a PIG file (omit with --resume)."""
+    song: tyro.conf.Positional[
+        Annotated[
+            str | None,
+            tyro.conf.arg(metavar="SONG", help_behavior_hint="(required unless --resume)"),
+        ]
+    ] = None
+    """A built-in song name, a MIDI file or a PIG file."""
     preset: str = "droq-paper"
     """droq-paper, droq-paper-pipelined, sac, redq, fast, fast-small, fast-utd2, residual,
     residual-anchored."""
-    steps: int | None = None
-    """Total environment steps (default 1M; when resuming, the run's own total)."""
+    steps: Annotated[
+        int | None,
+        tyro.conf.arg(help_behavior_hint="(default: 1000000; when resuming, the run's own)"),
+    ] = None
+    """Total environment steps."""
     out: Path = Path("runs/train")
     """Run directory (created if missing)."""
-    resume: Path | None = None
+    resume: Annotated[Path | None, tyro.conf.arg(help_behavior_hint="(optional)")] = None
     """Continue the run in this directory from its newest checkpoint."""
     progress: bool = True
     """Show a progress bar with steps/s and the latest F1 (on a terminal only: a redrawn bar
@@ -300,12 +322,12 @@ class Eval:
     """Score a trained policy on a song: metrics.json, performance.mid, actions.npy and
     pianoroll.png."""
 
-    run_dir: tyro.conf.Positional[Path]
+    run_dir: tyro.conf.Positional[Annotated[Path, tyro.conf.arg(metavar="RUN_DIR")]]
     """A training run directory (from `pianist train`)."""
-    song: tyro.conf.Positional[str]
+    song: tyro.conf.Positional[SongArg]
     """A built-in song name, a MIDI file or a PIG file."""
-    out: Path | None = None
-    """Output directory (default RUN_DIR/eval)."""
+    out: Annotated[Path | None, tyro.conf.arg(help_behavior_hint="(default: RUN_DIR/eval)")] = None
+    """Output directory."""
     seed: int = 0
 
     def run(self) -> None:
