@@ -2,10 +2,15 @@
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
+import warnings
 from pathlib import Path
 
 import pytest
 
+from pianist.cli import main
 from pianist.music import (
     MusicError,
     PigDatasetError,
@@ -177,3 +182,48 @@ def test_malformed_file(tmp_path: Path) -> None:
     (tmp_path / "out" / "index.json").write_text("{broken")
     with pytest.raises(MusicError, match="import-pig"):
         list_pig_songs("etude-12", tmp_path / "out")
+
+
+def _pianist(*args: str, data: Path, **env: str) -> subprocess.CompletedProcess:
+    """The command line as a user runs it, with ``data`` as $PIANIST_DATA."""
+    environ = {k: v for k, v in os.environ.items() if k != "PIANIST_PIG"}
+    environ.update(PIANIST_DATA=str(data), **env)
+    return subprocess.run(
+        [sys.executable, "-m", "pianist.cli", *args],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env=environ,
+    )
+
+
+def test_cli_turns_a_broken_piece_warning_into_one_line(tmp_path: Path) -> None:
+    """The command line says a flagged piece's problems in its own words (info's warning lines,
+    a "pianist: warning:" line for play), never as a Python warning with a source line."""
+    data = tmp_path / "data"
+    import_pig(_dataset(tmp_path / "pig"), data / "pig")
+    info = _pianist("info", "NocturneNo1", data=data)
+    assert info.returncode == 0 and info.stderr == ""
+    assert "warning:    PIG piece NocturneNo1:" in info.stdout and "wrong tempo" in info.stdout
+    assert info.stdout.count("more than five keys") == 1  # not again from check_playability
+    out = tmp_path / "played"
+    args = ("play", "NocturneNo1", "--controller", "zero", "--physics", "fast", "--no-audio")
+    play = _pianist(*args, "--out", str(out), data=data)
+    assert play.returncode == 0, play.stderr
+    lines = play.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("pianist: warning: PIG piece NocturneNo1:")
+    assert "UserWarning" not in play.stderr and ".py:" not in play.stderr
+
+
+def test_songs_marks_broken_pieces(
+    tmp_path: Path, data_home: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import_pig(_dataset(tmp_path / "pig"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # nothing may escape as a warning
+        assert main(["songs", "--suite", "repertoire-150"]) == 0
+    captured = capsys.readouterr()
+    rows = {line.split()[0]: line for line in captured.out.splitlines()}
+    assert rows["NocturneNo1"].endswith(" !") and not rows["GolliwoggsCakewalk"].endswith("!")
+    assert "!: known problems" in captured.out.splitlines()[-1]
+    assert captured.err == ""

@@ -9,6 +9,7 @@ from __future__ import annotations
 import math
 import os
 import sys
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated, Any, Literal
@@ -35,8 +36,6 @@ class Songs:
     library, or imported PIG pieces."""
 
     def run(self) -> None:
-        import warnings
-
         from pianist.music import SUITES, PigDatasetError, list_songs, load_song, song_stats
 
         suites = SUITES if self.suite == "all" else (self.suite,)
@@ -44,6 +43,7 @@ class Songs:
             f"{'name':40s} {'suite':17s} {'s':>6s} {'notes':>5s} {'n/s':>5s} "
             f"{'span':>4s} {'poly':>4s}"
         )
+        flagged = False
         for suite in suites:
             try:
                 names = list_songs(suite)
@@ -52,18 +52,22 @@ class Songs:
                     continue  # PIG suites appear once `pianist import-pig` has run
                 raise
             for name in names:
-                with warnings.catch_warnings():
-                    warnings.simplefilter("ignore")  # known-broken PIG pieces warn on load
+                # Known-broken PIG pieces warn on load: a mark in the table, not a warning each.
+                with warnings.catch_warnings(record=True) as caught:
+                    warnings.simplefilter("always")
                     stats = song_stats(load_song(name))
+                flagged |= bool(caught)
                 span = "-" if stats.max_hand_span is None else str(stats.max_hand_span)
                 _out(
                     f"{name:40s} {suite:17s} {stats.duration_s:6.1f} {stats.num_notes:5d} "
                     f"{stats.notes_per_second:5.1f} {span:>4s} {stats.max_polyphony:4d}"
+                    + (" !" if caught else "")
                 )
         _out(
             "s: duration in seconds; n/s: notes per second; span: widest hand span in "
             "semitones (keys held together in one hand; - without hands); poly: most notes "
             "sounding at once"
+            + ("; !: known problems (`pianist info NAME` lists them)" if flagged else "")
         )
 
 
@@ -104,7 +108,12 @@ class Info:
             song_stats,
         )
 
-        song = load_song(self.song)
+        # Warnings on load (a known-broken PIG piece) are part of the description.
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            song = load_song(self.song)
+        problems = [" ".join(str(w.message).split()) for w in caught]
+        problems += [p for p in check_playability(song) if not any(p in q for q in problems)]
         stats = song_stats(song)
         frames = goal_frames(song)
         pitches = [n.pitch for n in song.notes]
@@ -128,7 +137,7 @@ class Info:
             f" in 1 s), polyphony {stats.max_polyphony}, hand span "
             + ("-" if stats.max_hand_span is None else f"{stats.max_hand_span} semitones"),
         ]
-        lines += [f"warning:    {problem}" for problem in check_playability(song)]
+        lines += [f"warning:    {problem}" for problem in problems]
         _out("\n".join(lines))
 
 
@@ -403,7 +412,9 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``pianist`` console script; returns the exit status."""
     command = tyro.cli(Command, args=argv, prog="pianist", description=__doc__.splitlines()[0])
     try:
-        command.run()
+        with warnings.catch_warnings():  # restores the library's warning display afterwards
+            warnings.showwarning = _show_warning
+            command.run()
     except KeyboardInterrupt:
         sys.stderr.write("pianist: interrupted\n")
         return 130
@@ -414,6 +425,19 @@ def main(argv: list[str] | None = None) -> int:
         sys.stderr.write(f"pianist: error: {message}\n")
         return 1
     return 0
+
+
+def _show_warning(
+    message: Warning | str,
+    category: type[Warning],
+    filename: str,
+    lineno: int,
+    file: Any = None,
+    line: str | None = None,
+) -> None:
+    """Show a warning raised during a command as one line (no file path or source line): the
+    warnings are about the user's input (e.g. a known-broken PIG piece), not about code."""
+    sys.stderr.write(f"pianist: warning: {' '.join(str(message).split())}\n")
 
 
 def _expected_error(exc: Exception) -> str | None:
