@@ -267,6 +267,36 @@ def test_unfingered_midi_is_fingered_automatically_unless_file_is_asked(tmp_path
     assert metrics["fingering"] == "auto" and metrics["controller"] == "planner"
 
 
+def _midi(path, tracks):
+    """A type-1 MIDI file with one track per (name, pitches), one note per beat."""
+    midi = mido.MidiFile(type=1)
+    for name, pitches in tracks:
+        track = mido.MidiTrack([mido.MetaMessage("track_name", name=name)])
+        for pitch in pitches:
+            track += [
+                mido.Message("note_on", note=pitch, velocity=80, time=0),
+                mido.Message("note_off", note=pitch, velocity=0, time=480),
+            ]
+        midi.tracks.append(track)
+    midi.save(path)
+    return str(path)
+
+
+def test_info_says_where_the_hands_come_from(tmp_path, capsys):
+    named = _midi(tmp_path / "named.mid", [("Right Hand", (72, 76)), ("Left Hand", (48, 52))])
+    assert main(["info", named]) == 0
+    out = capsys.readouterr().out
+    assert "hands:      left, right (from the MIDI file, by track name: 'Right Hand' right, " in out
+    assert "unknown" not in out
+    assert "fingering:  0% of notes in the file (play estimates the rest" in out
+    single = _midi(tmp_path / "single.mid", [("Piano", (60, 62, 64))])
+    assert main(["info", single]) == 0
+    out = capsys.readouterr().out
+    assert "hands:      right (estimated: the file names none)" in out
+    assert main(["info", "c-major-chords"]) == 0
+    assert "hands:      left, right\n" in capsys.readouterr().out
+
+
 def test_songs_lists_the_open_library_with_difficulty(capsys):
     assert main(["songs", "--suite", "open-etude-12"]) == 0
     rows = capsys.readouterr().out.strip().splitlines()[1:-1]  # no header, no legend

@@ -16,6 +16,7 @@ from pianist.music import (
     assign_fingering,
     assign_hands,
     check_playability,
+    describe_midi_hands,
     ensure_fingering,
     get_song,
     load_song,
@@ -168,16 +169,63 @@ def test_midi_tracks_named_for_hands(tmp_path: Path) -> None:
     assert load_song(path, fingering="none").fingering_coverage == 0.0
 
 
+@pytest.mark.parametrize(
+    ("right", "left"),
+    [
+        ("Right Hand", "Left Hand"),
+        ("RH", "LH"),
+        ("Piano right", "Piano left"),
+        ("Treble", "Bass"),
+        ("R.H.", "L.H."),
+        ("RightHand", "LeftHand"),
+        ("Piano_RH", "Piano_LH"),
+        ("PianoRH", "PianoLH"),
+        ("rechte Hand", "linke Hand"),
+        ("Piano RH", "Piano"),  # one named: the other is the other hand
+        ("Piano", "LH"),
+    ],
+)
+def test_midi_hand_names_are_recognised(tmp_path: Path, right: str, left: str) -> None:
+    # The right-hand name is on the low track: the hands come from the names, not the register.
+    path = tmp_path / "named.mid"
+    _two_track_midi(path, (left, right))
+    hints = midi_hand_hints(path, read_midi(path))
+    assert hints is not None
+    by_pitch = dict(zip((n.pitch for n in read_midi(path).notes), hints, strict=True))
+    assert by_pitch[72] == "left" and by_pitch[48] == "right"
+    assert (describe_midi_hands(path) or "").startswith("by track name: ")
+
+
+def test_midi_hand_from_instrument_name(tmp_path: Path) -> None:
+    path = tmp_path / "instrument.mid"
+    midi = mido.MidiFile(type=1, ticks_per_beat=480)
+    for name, pitch in (("Right Hand", 48), ("Left Hand", 72)):
+        midi.tracks.append(
+            mido.MidiTrack(
+                [
+                    mido.MetaMessage("track_name", name="Piano"),
+                    mido.MetaMessage("instrument_name", name=name),
+                    mido.Message("note_on", note=pitch, velocity=80, time=0),
+                    mido.Message("note_off", note=pitch, velocity=0, time=480),
+                ]
+            )
+        )
+    midi.save(path)
+    assert midi_hand_hints(path, read_midi(path)) == ("right", "left")
+
+
 def test_midi_unnamed_tracks_by_register_and_single_track(tmp_path: Path) -> None:
     path = tmp_path / "parts.mid"
     _two_track_midi(path, ("one", "two"))
     hints = midi_hand_hints(path, read_midi(path))
     assert hints is not None and set(hints) == {"left", "right"}
+    assert describe_midi_hands(path) == "by register: 'one' right, 'two' left"
     single = tmp_path / "single.mid"
     from pianist.music import write_midi
 
     write_midi(get_song("c-major-chords"), single)
     assert midi_hand_hints(single, read_midi(single)) is None
+    assert describe_midi_hands(single) is None
 
 
 def test_song_stats() -> None:

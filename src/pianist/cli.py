@@ -94,7 +94,12 @@ class ImportPig:
 
 @dataclass(frozen=True)
 class Info:
-    """Describe a song: duration, notes, hands, fingering coverage, goal frames."""
+    """Describe a song: duration, notes, hands, fingering coverage, goal frames.
+
+    Hands and fingers the file lacks are given as `play` (with its default --fingering auto)
+    estimates them, saying where the hands come from: the file's fingering, a MIDI file's
+    tracks (named "Right Hand", "LH", "Treble", ... or told apart by register), or estimated.
+    """
 
     song: tyro.conf.Positional[SongArg]
     """A built-in song name, a MIDI file (.mid) or a PIG fingering file (.txt)."""
@@ -102,6 +107,7 @@ class Info:
     def run(self) -> None:
         from pianist.music import (
             check_playability,
+            describe_midi_hands,
             goal_frames,
             load_song,
             pitch_to_name,
@@ -112,12 +118,26 @@ class Info:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             song = load_song(self.song)
-        problems = [" ".join(str(w.message).split()) for w in caught]
-        problems += [p for p in check_playability(song) if not any(p in q for q in problems)]
-        stats = song_stats(song)
+            # What `play` plays by default: the missing hands and fingers estimated.
+            played = song if song.has_full_fingering else load_song(self.song, fingering="auto")
+        problems = list(dict.fromkeys(" ".join(str(w.message).split()) for w in caught))
+        problems += [p for p in check_playability(played) if not any(p in q for q in problems)]
+        stats = song_stats(played)
         frames = goal_frames(song)
         pitches = [n.pitch for n in song.notes]
-        hands = ", ".join(sorted(song.hands)) or "unknown (no fingering)"
+        hands = ", ".join(sorted(played.hands)) or "-"
+        if any(n.hand is None for n in song.notes):
+            is_midi = Path(self.song).suffix.lower() in (".mid", ".midi")
+            parts = describe_midi_hands(self.song) if is_midi else None
+            if parts is not None:
+                hands += f" (from the MIDI file, {parts})"
+            elif song.hands:
+                hands += " (partly estimated: the file names a hand for some notes)"
+            else:
+                hands += " (estimated: the file names none)"
+        fingering = f"{100 * song.fingering_coverage:.0f}% of notes"
+        if not song.has_full_fingering and song.notes:
+            fingering += " in the file (play estimates the rest: --fingering auto)"
         lines = [
             f"song:       {song.name or self.song}",
             f"duration:   {song.duration_s:.2f} s",
@@ -129,7 +149,7 @@ class Info:
             )
         lines += [
             f"hands:      {hands}",
-            f"fingering:  {100 * song.fingering_coverage:.0f}% of notes",
+            f"fingering:  {fingering}",
             f"sustain:    {len(song.sustain)} pedal intervals",
             f"goal:       {frames.num_frames} frames at {1 / frames.dt:g} Hz, "
             f"max {int(frames.keys.sum(axis=1).max(initial=0))} keys at once",

@@ -22,7 +22,7 @@ from pianist.music.library import SUITES, get_song, list_songs, load_song, song_
 from pianist.music.midi import read_midi, write_midi
 from pianist.music.notes import Note, Song
 from pianist.music.open_library import OPEN_SUITE, open_song_info
-from pianist.music.parts import midi_hand_hints
+from pianist.music.parts import describe_midi_hands, midi_hand_hints
 from pianist.music.pig import read_pig, write_pig
 from pianist.music.pig_dataset import PigDatasetError, import_pig, user_data_dir
 from pianist.music.pitch import name_to_pitch, pitch_to_name
@@ -45,6 +45,7 @@ __all__ = [
     "assign_fingering",
     "assign_hands",
     "check_playability",
+    "describe_midi_hands",
     "ensure_fingering",
     "errors",
     "get_song",
