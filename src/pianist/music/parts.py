@@ -67,7 +67,8 @@ def _note_ons(path: Path) -> tuple[list[tuple[int, float, int, int]], dict[int, 
     events: list[tuple[int, int, int, int]] = []  # tick, pitch, track, channel
     for track_index, track in enumerate(midi.tracks):
         tick = 0
-        track_names, instrument_names = [], []
+        track_names: list[str] = []
+        instrument_names: list[str] = []
         for msg in track:
             tick += msg.time
             if msg.type == "set_tempo":
