@@ -64,6 +64,7 @@ def _dataset(root: Path, with_ids: bool = True) -> Path:
 def data_home(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     home = tmp_path / "data"
     monkeypatch.setenv("PIANIST_DATA", str(home))
+    monkeypatch.delenv("PIANIST_PIG", raising=False)
     return home
 
 
@@ -85,6 +86,10 @@ def test_user_data_dir_precedence(monkeypatch: pytest.MonkeyPatch, tmp_path: Pat
 
 
 def test_before_import_names_explain_what_to_do(data_home: Path) -> None:
+    with pytest.raises(PigDatasetError, match=f"in {data_home / 'pig'}.*PIANIST_PIG=D"):
+        load_song("FrenchSuiteNo1Allemande")
+    with pytest.raises(UnknownSongError, match="import-pig.*PIANIST_PIG=D"):
+        load_song("NocturneNo1")  # not an etude-12 name: unknown, with the hint
     with pytest.raises(PigDatasetError, match="import-pig"):
         load_song("RoboPianist-etude-12-FrenchSuiteNo1Allemande-v0")
     with pytest.raises(PigDatasetError, match="import-pig"):
@@ -227,3 +232,30 @@ def test_songs_marks_broken_pieces(
     assert rows["NocturneNo1"].endswith(" !") and not rows["GolliwoggsCakewalk"].endswith("!")
     assert "!: known problems" in captured.out.splitlines()[-1]
     assert captured.err == ""
+
+
+def test_an_import_elsewhere_is_used_through_pianist_pig(
+    tmp_path: Path,
+    data_home: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """`import-pig --dest D` says how to use D; with PIANIST_PIG=D every command finds it."""
+    src, dest = _dataset(tmp_path / "pig"), tmp_path / "elsewhere"
+    monkeypatch.chdir(tmp_path)
+    assert main(["import-pig", str(src), "--dest", "elsewhere"]) == 0
+    summary = capsys.readouterr().out
+    assert f"songs are looked up in {data_home / 'pig'}" in summary
+    assert summary.splitlines()[-1] == f"  export PIANIST_PIG={dest.resolve()}"
+    assert main(["songs", "--suite", "etude-12"]) == 1
+    assert "set PIANIST_PIG=D" in capsys.readouterr().err
+
+    monkeypatch.setenv("PIANIST_PIG", str(dest))
+    assert main(["songs", "--suite", "etude-12"]) == 0
+    assert "FrenchSuiteNo1Allemande" in capsys.readouterr().out
+    assert main(["info", "RoboPianist-etude-12-FrenchSuiteNo1Allemande-v0"]) == 0
+    assert "notes:      5" in capsys.readouterr().out
+    # Importing again without --dest writes where PIANIST_PIG points: nothing more to set.
+    assert main(["import-pig", str(src)]) == 0
+    assert "PIANIST_PIG" not in capsys.readouterr().out
+    assert not (data_home / "pig").exists()

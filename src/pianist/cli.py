@@ -74,13 +74,19 @@ class Songs:
 @dataclass(frozen=True)
 class ImportPig:
     """Convert a copy of the PIG fingering dataset into songs (RoboPianist etude-12 and
-    repertoire-150 names then resolve like built-in songs)."""
+    repertoire-150 names then resolve like built-in songs).
+
+    Every command looks the songs up in one folder, where they are written by default:
+    PIANIST_PIG if set, else pig/ in PIANIST_DATA, else ~/.local/share/pianist/pig (the XDG
+    data folder). After an import with --dest elsewhere, set PIANIST_PIG to that folder (the
+    import prints the exact line): a variable, not a hidden record, keeps each lookup explicit.
+    """
 
     src: tyro.conf.Positional[Annotated[Path, tyro.conf.arg(metavar="DIR")]]
     """The dataset folder (e.g. PianoFingeringDataset_v1.2, with FingeringFiles/ and List.csv)."""
     dest: Annotated[
         Path | None,
-        tyro.conf.arg(help_behavior_hint="(default: $PIANIST_DATA/pig, else the XDG data folder)"),
+        tyro.conf.arg(help_behavior_hint="(default: where songs are looked up, see above)"),
     ] = None
     """Where to write the songs."""
     strict: bool = True

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import difflib
 import os
+import re
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Literal
@@ -35,11 +36,14 @@ from pianist.music.parts import midi_hand_hints
 from pianist.music.pig import read_pig
 from pianist.music.pig_dataset import (
     ETUDE_12,
+    PIG_DIR_ENV,
     PIG_SUITES,
     find_pig_song,
     is_pig_name,
     list_pig_songs,
     load_pig_song,
+    pig_data_dir,
+    pig_dataset_imported,
 )
 from pianist.music.pitch import name_to_pitch
 
@@ -247,9 +251,16 @@ def _unknown(name: str) -> UnknownSongError:
     known = list(_SONGS) + list(_ORIGINAL_SONGS) + list_open_songs()
     close = difflib.get_close_matches(name, known, n=3, cutoff=0.5)
     hint = f"did you mean {', '.join(close)}? " if close else ""
+    pig = ""
+    if not close and re.fullmatch(r"[A-Z][A-Za-z0-9]+", name) and not pig_dataset_imported():
+        # A RoboPianist-style name (repertoire-150 pieces are not all gym-style ids).
+        pig = (
+            f"; a PIG piece resolves once imported in {pig_data_dir()} (`pianist import-pig "
+            f"DIR`; for an import made with --dest D, set {PIG_DIR_ENV}=D)"
+        )
     return UnknownSongError(
         f"unknown song {name!r}: {hint}run `pianist songs` to list the built-in songs, "
-        "or give a path to a .mid/.midi or PIG .txt file"
+        f"or give a path to a .mid/.midi or PIG .txt file{pig}"
     )
 
 
@@ -298,7 +309,8 @@ def load_song(
 
     Names: the debug songs, the original's (``robopianist-debug``, also by environment id
     ``RoboPianist-debug-TwinkleTwinkleLittleStar-v0``), the ``open-etude-12`` pieces, and
-    (once ``pianist import-pig`` has run) the PIG pieces by RoboPianist name
+    (once ``pianist import-pig`` has run; looked up in ``$PIANIST_PIG``, else the user data
+    folder, see :func:`pianist.music.pig_dataset.pig_data_dir`) the PIG pieces by RoboPianist name
     (``FrenchSuiteNo1Allemande``, ``RoboPianist-etude-12-FrenchSuiteNo1Allemande-v0``,
     ``pig-001``).
     ``.mid``/``.midi`` files go to :func:`read_midi` (no fingering), ``.txt`` files to

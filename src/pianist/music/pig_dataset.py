@@ -3,8 +3,11 @@
 PIG (Nakamura et al.) cannot be redistributed: users register, download
 ``PianoFingeringDataset_v1.2.zip`` and unpack it. :func:`import_pig` reads that folder (its
 ``FingeringFiles/NNN-M_fingering.txt`` and ``List.csv``), checks every file, and writes the
-songs as PIG files plus an ``index.json`` into the user data directory (``$PIANIST_DATA``,
-else ``$XDG_DATA_HOME/pianist``, else ``~/.local/share/pianist``), under ``pig/``.
+songs as PIG files plus an ``index.json`` into the PIG folder, :func:`pig_data_dir`:
+``$PIANIST_PIG``, else ``pig/`` in the user data directory (``$PIANIST_DATA``, else
+``$XDG_DATA_HOME/pianist``, else ``~/.local/share/pianist``). Songs are looked up in that same
+folder, so an import into another folder (``dest_dir``, ``pianist import-pig --dest``) is used
+by pointing ``$PIANIST_PIG`` at it; the import's summary says so, with the exact line.
 
 Names follow the original RoboPianist: the first fingering version (lowest ``M``) of each
 piece, named from List.csv's piece title in CamelCase (``FrenchSuiteNo1Allemande``).
@@ -24,6 +27,7 @@ import csv
 import json
 import os
 import re
+import shlex
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -76,9 +80,25 @@ def user_data_dir() -> Path:
     return base / "pianist"
 
 
+#: Environment variable naming the folder of the imported PIG songs (where they are looked up).
+PIG_DIR_ENV = "PIANIST_PIG"
+
+
 def pig_data_dir() -> Path:
-    """Folder the imported PIG songs live in (``<user data dir>/pig``)."""
+    """Folder the imported PIG songs are written to by default and looked up in:
+    ``$PIANIST_PIG``, else ``<user data dir>/pig``."""
+    if os.environ.get(PIG_DIR_ENV):
+        return Path(os.environ[PIG_DIR_ENV]).expanduser()
     return user_data_dir() / "pig"
+
+
+def _not_imported(what: str) -> str:
+    """The message for a PIG name or suite asked for before an import is found."""
+    return (
+        f"{what}: no imported PIG dataset in {pig_data_dir()}; register and download PIG, then "
+        f"run `pianist import-pig DIR` once (for an import made with --dest D, set "
+        f"{PIG_DIR_ENV}=D)"
+    )
 
 
 def piece_name(title: str) -> str:
@@ -124,7 +144,8 @@ class PigImportReport:
         return [p for p in self.named if p.problems]
 
     def summary(self) -> str:
-        """A few lines for the command line."""
+        """A few lines for the command line; when the songs went elsewhere than where they are
+        looked up (:func:`pig_data_dir`), the last lines give the variable to set."""
         lines = [
             f"imported {len(self.pieces)} PIG fingering files ({len(self.named)} pieces) into "
             f"{self.dest_dir}",
@@ -135,7 +156,21 @@ class PigImportReport:
             lines.append(f"warning: {piece.name} ({piece.file}): {'; '.join(piece.problems)}")
         for line in self.skipped:
             lines.append(f"skipped: {line}")
+        lookup = pig_data_dir()
+        if _same_dir(self.dest_dir, lookup):
+            return "\n".join(lines)
+        lines += [
+            f"songs are looked up in {lookup}: to use these, set {PIG_DIR_ENV} to their folder,",
+            f"  export {PIG_DIR_ENV}={shlex.quote(str(self.dest_dir.resolve()))}",
+        ]
         return "\n".join(lines)
+
+
+def _same_dir(a: Path, b: Path) -> bool:
+    try:
+        return a.resolve() == b.resolve() or (a.exists() and b.exists() and a.samefile(b))
+    except OSError:
+        return False
 
 
 def _find_fingering_dir(src: Path) -> Path:
@@ -196,8 +231,9 @@ def import_pig(
         src_dir: the unpacked ``PianoFingeringDataset_v1.2`` folder (holding
             ``FingeringFiles/`` and ``List.csv``), or its ``FingeringFiles`` folder with
             ``List.csv`` beside or inside it.
-        dest_dir: where to write; default :func:`pig_data_dir`. Any earlier import there is
-            replaced (index written last, atomically).
+        dest_dir: where to write; default :func:`pig_data_dir`, where songs are looked up
+            (elsewhere, set ``$PIANIST_PIG`` to it to use the songs). Any earlier import there
+            is replaced (index written last, atomically).
         strict: raise on the first unreadable fingering file (default); with False, skip it
             and list it in the report.
     Returns:
@@ -349,10 +385,9 @@ def load_pig_song(name: str, dest: Path | None = None) -> Song:
     """
     index = _load_index(dest)
     if index is None:
-        raise PigDatasetError(
-            f"{name!r} is a PIG dataset piece, which cannot be shipped: register and download "
-            "PIG, then run `pianist import-pig DIR` once"
-        )
+        if dest is not None:
+            raise PigDatasetError(f"{name!r}: no imported PIG dataset in {dest}")
+        raise PigDatasetError(_not_imported(f"{name!r} is a PIG piece, which cannot be shipped"))
     piece = _find(name, index)
     if piece is None:
         raise UnknownSongError(f"{name!r} is not a piece of the imported PIG dataset")
@@ -378,13 +413,18 @@ def list_pig_songs(suite: str = "repertoire-150", dest: Path | None = None) -> l
         raise ValueError(f"unknown PIG suite {suite!r}; use one of {', '.join(PIG_SUITES)}")
     index = _load_index(dest)
     if index is None:
-        raise PigDatasetError(
-            f"suite {suite} needs the PIG dataset: run `pianist import-pig DIR` once"
-        )
+        if dest is not None:
+            raise PigDatasetError(f"suite {suite}: no imported PIG dataset in {dest}")
+        raise PigDatasetError(_not_imported(f"suite {suite} needs the PIG dataset"))
     names = [p["name"] for p in index["pieces"] if p["name"]]
     if suite == "etude-12":
         return [n for n in ETUDE_12 if n in names]
     return names
+
+
+def pig_dataset_imported() -> bool:
+    """Whether an imported PIG dataset is found where songs are looked up."""
+    return (pig_data_dir() / INDEX_NAME).is_file()
 
 
 def pig_piece_info(name: str, dest: Path | None = None) -> dict[str, Any] | None:
@@ -395,6 +435,7 @@ def pig_piece_info(name: str, dest: Path | None = None) -> dict[str, Any] | None
 
 __all__ = [
     "ETUDE_12",
+    "PIG_DIR_ENV",
     "PIG_SUITES",
     "PigDatasetError",
     "PigImportReport",
@@ -405,6 +446,7 @@ __all__ = [
     "list_pig_songs",
     "load_pig_song",
     "pig_data_dir",
+    "pig_dataset_imported",
     "pig_piece_info",
     "piece_name",
     "user_data_dir",
