@@ -7,6 +7,7 @@ from pianist.control import make_controller
 from pianist.control.planner import ENV_OPTIONS, IKPlanner, PlannerConfig
 from pianist.env import PianoEnv
 from pianist.eval import run_episode
+from pianist.eval.session import make_env
 from pianist.music import Note, Song
 from pianist.sim.constants import BLACK_KEY_MASK, FINGERTIP_CAPSULE_RADIUS_M
 
@@ -176,12 +177,12 @@ def test_a_thumb_that_cannot_line_up_at_hover_height_presses_from_where_it_stand
     # key at hover height (it stood there for the whole note before); at key depth it can.
     song = Song((Note(60, 0.5, 1.5, finger=0), Note(84, 2.0, 2.5, finger=0)), name="thumb")
     env = PianoEnv(song, physics="fast", **ENV_OPTIONS)
-    planner = IKPlanner()
+    planner = IKPlanner(PlannerConfig(hand_planning="frame"))
     observation, _ = env.reset(seed=0)
     planner.reset(env)
     hand = planner.hands[0]
     hand.tx_plan = hand.tx_plan + 0.01
-    hand.plan_commands(env.model, planner.dt, planner.config)
+    hand.plan_commands(env.model, planner.dt, planner.config, multi_step=False)
     key = 60 - 21
     down = []
     for _ in range(31):
@@ -273,18 +274,35 @@ def test_a_finger_changing_keys_in_a_chord_change_skims_low():
     ("low", "high", "fingers", "kept"), [(36, 48, (9, 5), 36), (60, 72, (0, 4), 72)]
 )
 def test_a_chord_wider_than_the_hand_keeps_its_outer_voice(low, high, fingers, kept):
-    # An octave is beyond the Shadow hand's span (thumb to little finger). The planner plays
-    # the bass in the left hand, the top in the right, for the whole note; before, it put the
-    # hand halfway and hit neither key but their neighbours.
+    # An octave is beyond the Shadow hand's span (thumb to little finger). Planned frame by
+    # frame, the hand plays the bass in the left hand, the top in the right, for the whole
+    # note; before, it put the hand halfway and hit neither key but their neighbours.
     notes = (Note(low, 0.5, 1.5, finger=fingers[0]), Note(high, 0.5, 1.5, finger=fingers[1]))
     env = PianoEnv(Song(notes, name="octave"), physics="fast", **ENV_OPTIONS)
-    planner = IKPlanner()
+    planner = IKPlanner(PlannerConfig(hand_planning="frame"))
     episode = run_episode(env, planner, seed=0)
     down = np.asarray(episode.active_keys)
     dropped = ({low, high} - {kept}).pop()
     assert np.flatnonzero(down.any(axis=0)).tolist() == [kept - 21]
     assert down[:, kept - 21].sum() >= 18  # of its 21 frames
     assert any(hand.skip[:, dropped - 21].any() for hand in planner.hands)
+
+
+@pytest.mark.parametrize(("low", "high", "fingers"), [(36, 48, (9, 5)), (60, 72, (0, 4))])
+def test_a_chord_wider_than_the_hand_is_shared_with_the_other_hand(low, high, fingers):
+    # The whole-piece plan gives the key one hand cannot reach to the other, free, hand:
+    # both keys of the octave sound for the whole note.
+    notes = (Note(low, 0.5, 1.5, finger=fingers[0]), Note(high, 0.5, 1.5, finger=fingers[1]))
+    env = PianoEnv(Song(notes, name="octave"), physics="fast", **ENV_OPTIONS)
+    planner = IKPlanner()
+    episode = run_episode(env, planner, seed=0)
+    assert planner.plan_kind == ("piece", True)
+    down = np.asarray(episode.active_keys)
+    assert np.flatnonzero(down.any(axis=0)).tolist() == [low - 21, high - 21]
+    assert down[:, low - 21].sum() >= 18 and down[:, high - 21].sum() >= 18  # of 21 frames
+    due = np.flatnonzero(env.goal.keys.any(axis=1))
+    hands = {int(planner.fingers[t, k]) // 5 for t in due for k in (low - 21, high - 21)}
+    assert hands == {0, 1}  # one key in each hand
 
 
 @pytest.mark.parametrize(("key", "finger", "presses"), [(73 - 21, 3, True), (74 - 21, 4, False)])
@@ -348,3 +366,25 @@ def test_posture_samples_are_made_once_per_scene_and_reused_exactly(monkeypatch)
     env = PianoEnv(song, physics="fast", hands="right", **ENV_OPTIONS)
     run_episode(env, IKPlanner(), seed=0)
     assert len(calls) == 2 and len(module._POSTURES) == 2
+
+
+@pytest.mark.parametrize(
+    ("song", "floor"), [("clara-schumann-polonaise-op1-no1", 0.62), ("bach-chorale-bwv66-6", 0.64)]
+)
+def test_real_pieces_play_above_a_floor(song, floor):
+    # open-etude-12, fast preset: 0.40 and 0.60 planned frame by frame with the song's
+    # fingering (octaves and chords wider than the Shadow hand skipped, jumps late); with the
+    # whole-piece plan, its own fingering and keys shared between the hands: 0.69 and 0.69.
+    planner = IKPlanner()
+    env = make_env(song, planner, physics="fast")
+    assert run_episode(env, planner, seed=0).metrics()["f1"] >= floor
+    assert planner.plan_kind == ("piece", True)
+
+
+def test_a_new_episode_reuses_the_plan_exactly():
+    env = make_env("c-major-chords", IKPlanner(), physics="fast")
+    first, again = IKPlanner(), IKPlanner()
+    actions = run_episode(env, first, seed=0).actions
+    assert np.array_equal(run_episode(env, again, seed=0).actions, actions)
+    for a, b in zip(first.hands, again.hands, strict=True):
+        assert a.tx_path is b.tx_path  # made once, for the first episode

@@ -1,14 +1,19 @@
-"""An inverse-kinematics planner: plays a fingered song with no training.
+"""An inverse-kinematics planner: plays a song whose notes have hands, with no training.
 
-Each control step it
+At reset it plans where each forearm will be along the keyboard over the whole piece, either
+frame by frame with the song's fingering (the hand goes where the assigned fingers reach
+their keys, and stays while they still do) or over the whole piece at once
+(:mod:`pianist.control.hand_plan`: a dynamic programme that also chooses the fingers the
+Shadow hand can actually span, and shares keys one hand cannot reach with the other), and
+keeps the plan that leaves the most notes playable (``PlannerConfig.hand_planning``). Then
+each control step it
 
-1. plans where each forearm should be: for every goal frame, the slide position along the
-   keyboard that puts the assigned fingers over their keys (within each finger's reach for a
-   chord), held until the hand's next note and reached by a quick move that ends as the note
-   starts, steered in closed loop through the slide servo's exact dynamics; for a large move
-   the fingers let go of their keys and travel just above the next ones; with the optional
-   height slide (``tz``) the forearm is held low enough for the thumb to reach a key's bottom,
-   pushed down harder when the keys lift it;
+1. steers each forearm's slide along that plan: a quick move that ends as the note starts
+   (a jump takes the steps the slide's servo needs, on a minimum-jerk path), in closed loop
+   through the servo's exact dynamics; for a large move the fingers let go of their keys and
+   travel just above the next ones; with the optional height slide (``tz``) the forearm is
+   held low enough for the thumb to reach a key's bottom, pushed down harder when the keys
+   lift it;
 2. gives every fingertip a target: the assigned fingertip pressed below the top of each key
    due at the coming frame (once it is over the key), fingers due soon hovering above their
    keys, the others lifted to a fixed posture clear of the keyboard;
@@ -22,8 +27,11 @@ Each control step it
 
 from __future__ import annotations
 
+import weakref
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from functools import partial
+from typing import TYPE_CHECKING, Any, Literal
 
 import gymnasium as gym
 import mujoco
@@ -32,6 +40,7 @@ import scipy.linalg
 import scipy.spatial
 
 from pianist.control.base import BaseController
+from pianist.control.hand_plan import HandPlanCosts, free_frames, move_frames, plan_hand
 from pianist.env.handle import control_handle
 from pianist.sim import constants as C
 from pianist.sim.scene import SceneOptions
@@ -169,6 +178,32 @@ class PlannerConfig:
     """How close (along the key) to the press point a sampled fingertip must be to count."""
     samples: int = 4000
     """Sampled postures per finger for the nearest-posture start of the IK."""
+    hand_planning: Literal["frame", "piece", "best"] = "best"
+    """How the hand positions are planned: ``frame`` by frame with the song's fingering,
+    staying put within ``lazy_m``; over the whole ``piece``
+    (:mod:`pianist.control.hand_plan`) with the fingering ``refinger`` says; or the ``best``
+    of the frame-by-frame plan, the whole-piece plan with the song's fingering and the
+    whole-piece plan with its own, in that order of preference: a plan is chosen over the
+    ones before it only if it leaves at least ``piece_plan_margin`` more of the song's
+    key-frames playable (wide chords, jumps, a fingering the Shadow hand cannot span)."""
+    piece_plan_margin: float = 0.02
+    """Share of the song's key-frames a later plan must add to be chosen (see above)."""
+    playable_tolerance_m: float = 0.005
+    """How far outside a finger's sampled reach a key still counts as playable when plans
+    are compared (the sampled reach is a little conservative: the frame-by-frame plan's
+    chords press keys a few mm beyond it)."""
+    hand_plan: HandPlanCosts = HandPlanCosts()
+    """Weights of the whole-piece plan."""
+    share_keys: bool = True
+    """With the plan's fingering, offer the keys one hand cannot reach to the other hand."""
+    clearance_cost: float = 5.0
+    """Per frame, of a planned forearm position closer than ``forearm_separation_m`` to the
+    other forearm's (in lost key-frames)."""
+    refinger: bool = True
+    """With ``hand_planning="piece"``, choose the fingers too (each key to a finger of its hand
+    that reaches it from the planned position) instead of the song's: a pianist's fingering
+    spans more than the Shadow hand, whose fingers other than the thumb each reach about one
+    white key from a given hand position."""
     iterations: int = 3
     damping: float = 0.01
     rest_weight: float = 1e-4
@@ -236,12 +271,82 @@ class IKPlanner(BaseController):
         )
         self.hands = [_Hand(m, hand) for hand in handle.scene.hands]
         _use_postures(m, self.scratch, self.hands, cfg, handle.scene.options)
-        for hand in self.hands:
-            hand.plan_forearm(goal, self.key_point, cfg.lazy_m, cfg.skip_out_of_reach)
+        key = (id(goal), handle.scene.options, cfg)
+        cached = _PLANS.get(key)
+        if cached is not None and cached[0]() is goal:
+            # The same song in the same scene (a new episode): the plan is the same.
+            self.plan_kind, self.fingers, hand_plans = cached[1:]
+            for hand, arrays in zip(self.hands, hand_plans, strict=True):
+                hand.__dict__.update(arrays)
+            return
+        if cfg.hand_planning == "best":
+            candidates = [("frame", False), ("piece", False), ("piece", True)]
+            playable = [self._plan(goal, kind, refinger) for kind, refinger in candidates]
+            enough = max(playable) - cfg.piece_plan_margin * goal.keys.sum()
+            self.plan_kind = candidates[next(i for i, n in enumerate(playable) if n >= enough)]
+        else:
+            self.plan_kind = (cfg.hand_planning, cfg.refinger and cfg.hand_planning == "piece")
+        self._plan(goal, *self.plan_kind)
+        if len(_PLANS) >= _PLANS_KEPT:
+            del _PLANS[next(iter(_PLANS))]
+        hand_plans = [{name: getattr(hand, name) for name in _PLAN_ARRAYS} for hand in self.hands]
+        _PLANS[key] = (weakref.ref(goal), self.plan_kind, self.fingers, hand_plans)
+
+    def _plan(self, goal, kind: str, refinger: bool) -> int:
+        """Plan the hands' positions, fingers and forearm paths (``kind``: "frame" by frame or
+        over the whole "piece"; ``refinger``: the piece plan chooses the fingers); returns the
+        key-frames the plan leaves playable."""
+        cfg = self.config
+        piece = kind == "piece"
+        # The finger (0-9) that presses each due key: the song's, or the plan's.
+        self.fingers = goal.fingers.copy()
+        if piece:
+            self._plan_piece(goal, refinger)
+        else:
+            for hand in self.hands:
+                hand.plan_forearm(goal, self.key_point, cfg.lazy_m, cfg.skip_out_of_reach)
         if len(self.hands) == 2:
             _keep_forearms_apart(self.hands[0], self.hands[1], cfg.forearm_separation_m)
         for hand in self.hands:
-            hand.plan_commands(m, self.dt, cfg)
+            hand.plan_commands(self.model, self.dt, cfg, multi_step=piece)
+        return sum(hand.playable_keyframes(self) for hand in self.hands)
+
+    def _plan_piece(self, goal, refinger: bool) -> None:
+        """The whole-piece plan of both hands (:mod:`pianist.control.hand_plan`).
+
+        The right hand is planned first. With ``share_keys`` (and the plan's fingering), keys
+        one hand cannot reach from its plan (an octave, a chord wider than the hand) are
+        offered to the other, which plans for its own keys and those, kept clear of the first
+        forearm; then the first is planned again the same way. A key both hands would play
+        stays with the hand the song gives it.
+        """
+        cfg = self.config
+        hands = sorted(self.hands, key=lambda h: h.side != "right")
+        plan = partial(
+            _Hand.plan_piece,
+            goal=goal,
+            key_point=self.key_point,
+            dt=self.dt,
+            costs=cfg.hand_plan,
+            refinger=refinger,
+        )
+        plan(hands[0])
+        if len(hands) == 2:
+            first, second = hands
+            if refinger and cfg.share_keys:
+                plan(second, take=first.skip, extra_cost=first.clearance(second, cfg))
+                own_second = second.skip & second.own_keys(goal)
+                plan(first, take=own_second, extra_cost=second.clearance(first, cfg))
+                for a, b in ((first, second), (second, first)):
+                    both = (a.key_fingers >= 0) & (b.key_fingers >= 0)
+                    b_loses = both & a.own_keys(goal)
+                    b.key_fingers[b_loses] = -1
+            else:
+                plan(second)
+        for hand in self.hands:
+            mine = hand.key_fingers >= 0
+            self.fingers[mine] = hand.key_fingers[mine] + hand.finger_offset
+            hand.skip = goal.keys & ~(hand.key_fingers >= 0) & hand.own_keys(goal)
 
     # ----------------------------------------------------------------------------- acting
 
@@ -384,6 +489,64 @@ class _Hand:
             if ctrl is not None:
                 ctrl[actuator] = angle - gain * off  # a stiffer servo against the swing
 
+    def own_keys(self, goal) -> np.ndarray:
+        """(T, 88) the due keys the song gives this hand."""
+        local = goal.fingers - self.finger_offset
+        return goal.keys & (local >= 0) & (local < FINGERS_PER_HAND)
+
+    def clearance(self, other: _Hand, cfg: PlannerConfig) -> Callable[[np.ndarray], np.ndarray]:
+        """Candidate slide positions of ``other`` (P,) -> (T, P) cost of coming closer than
+        ``forearm_separation_m`` to this hand's planned forearm (they would collide) while
+        this hand plays (when it does not, it makes way: ``_keep_forearms_apart``)."""
+        sign = 1.0 if self.side == "right" else -1.0  # this forearm's side of the other
+
+        def cost(grid: np.ndarray) -> np.ndarray:
+            gap = sign * ((self.tx_plan[:, None] + self.root_y) - (grid[None, :] + other.root_y))
+            close = (gap < cfg.forearm_separation_m) & self.busy[:, None]
+            return np.where(close, cfg.clearance_cost, 0.0)
+
+        return cost
+
+    def plan_piece(
+        self,
+        goal,
+        key_point: np.ndarray,
+        dt: float,
+        costs: HandPlanCosts,
+        refinger: bool,
+        take: np.ndarray | None = None,
+        extra_cost: Callable[[np.ndarray], np.ndarray] | None = None,
+    ) -> None:
+        """The forearm slide position at every frame from the whole-piece plan
+        (:func:`pianist.control.hand_plan.plan_hand`), with its ``busy``, ``skip`` and
+        ``key_fingers`` (T, 88), this hand's finger 0-4 of each due key (-1: none).
+
+        ``take``: (T, 88) further keys (the other hand's) to play if the plan can
+        (``refinger`` only); ``extra_cost``: see :func:`plan_hand`.
+        """
+        local = goal.fingers - self.finger_offset
+        local = np.where((local >= 0) & (local < FINGERS_PER_HAND), local, -1)
+        if take is not None:
+            local = np.where(take & (local < 0), 0, local)  # any finger: the plan chooses
+        plan = plan_hand(
+            goal.keys,
+            local,
+            key_point[:, 1],
+            C.BLACK_KEY_MASK,
+            self.full_reach,
+            self.reach,
+            self.tip_offset_y,
+            (float(self.tx_range[0]), float(self.tx_range[1])),
+            start=0.0,
+            dt=dt,
+            outer="top" if self.side == "right" else "bottom",
+            costs=costs,
+            refinger=refinger,
+            extra_cost=extra_cost,
+        )
+        self.tx_plan, self.busy, self.skip = plan.position, plan.busy, plan.skip
+        self.key_fingers = plan.fingers
+
     def plan_forearm(
         self,
         goal,
@@ -455,9 +618,26 @@ class _Hand:
             wanted[fill] = wanted[known[nxt[fill]]]
         self.tx_plan = np.clip(wanted, *self.tx_range)
 
-    def plan_commands(self, m, dt: float, cfg: PlannerConfig) -> None:
+    def playable_keyframes(self, planner: IKPlanner) -> int:
+        """Key-frames of this hand's plan that a finger can press: not skipped, not during a
+        shift, and within the finger's reach from the planned position."""
+        goal = planner.goal
+        frames, keys = np.nonzero(goal.keys & ~self.skip & ~self.free[:, None])
+        finger = planner.fingers[frames, keys] - self.finger_offset
+        mine = (finger >= 0) & (finger < FINGERS_PER_HAND)
+        frames, keys, finger = frames[mine], keys[mine], finger[mine]
+        lo, hi = self.full_reach[finger, C.BLACK_KEY_MASK[keys].astype(int)].T
+        relative = planner.key_point[keys, 1] - self.tx_plan[frames]
+        tolerance = planner.config.playable_tolerance_m
+        return int(np.sum((relative >= lo - tolerance) & (relative <= hi + tolerance)))
+
+    def plan_commands(self, m, dt: float, cfg: PlannerConfig, multi_step: bool) -> None:
         """The forearm's reference path along the keyboard, ``tx_path`` (T + 2, 2): position
         and velocity wanted at the end of every step.
+
+        With ``multi_step`` (the whole-piece plan), a jump takes the steps the slide needs
+        (:func:`pianist.control.hand_plan.move_frames`) on a minimum-jerk path, the fingers
+        lifted a step before it; otherwise every move takes ``forearm_move_s``.
 
         The plan's steps become minimum-jerk moves of ``forearm_move_s`` that end
         ``press_lead_frames`` before the note starts (``shift_lead_frames`` for a shift the
@@ -480,8 +660,19 @@ class _Hand:
             raise ValueError("shift_lead_frames must be between 0 and press_lead_frames")
         shifts = np.flatnonzero(np.abs(np.diff(plan)) > cfg.shift_threshold_m) + 1
         delay = lead - cfg.shift_lead_frames
-        for k in shifts:
-            window = slice(max(0, k - n - lead + delay), max(0, k - lead + delay))
+        # Steps each shift takes: a long jump needs more than one (the slide's servo has a
+        # limited force); the whole-piece plan knows this and has paid for the frames.
+        if multi_step:
+            need = move_frames(plan[shifts] - plan[shifts - 1], dt)
+        else:
+            need = np.full(len(shifts), n)
+        lift_first = np.zeros(len(shifts), dtype=int)
+        if multi_step:
+            lift_first = free_frames(plan[shifts] - plan[shifts - 1], dt) - need
+        for k, steps, extra in zip(
+            shifts.tolist(), need.tolist(), lift_first.tolist(), strict=True
+        ):
+            window = slice(max(0, k - steps - extra - lead + delay), max(0, k - lead + delay))
             self.free[window] = True
             self.shift_to[window] = k
         if delay:
@@ -497,6 +688,21 @@ class _Hand:
         padded = np.concatenate([plan, np.full(n + 3 + lead, plan[-1])])
         # y[t]: where the forearm should be at the end of step t (two steps past the end too).
         y = np.array([weights @ padded[t + 1 + lead : t + 1 + lead + n] for t in range(T + 2)])
+        if multi_step:
+            # A jump that takes several steps follows a minimum-jerk path over them, arriving
+            # when a one-step move would (not starting before the previous shift has ended):
+            # its first step is small, so the fingers are off the keys before the hand flies.
+            previous = 0
+            for k, steps in zip(shifts.tolist(), need.tolist(), strict=True):
+                arrive = k + delay - 1 - lead  # the first step whose end is at the new place
+                begin = max(previous, arrive - steps + 1)
+                if arrive - begin >= 1:
+                    u = (np.arange(begin, arrive + 1) - begin + 1) / (arrive - begin + 1)
+                    start, end = y[begin - 1] if begin else y[0], y[arrive]
+                    y[begin : arrive + 1] = start + (end - start) * (
+                        10 * u**3 - 15 * u**4 + 6 * u**5
+                    )
+                previous = arrive + 1
         ext = np.concatenate([[y[0]], y, [y[-1]]])
         self.tx_path = np.stack([y, (ext[2:] - ext[:-2]) / (2 * dt)], axis=1)
         self.tx_servo = _Servo(m, self.tx_actuator, self.tx_dof, dt)
@@ -552,7 +758,7 @@ class _Hand:
         pressed_key = np.full(FINGERS_PER_HAND, -1)
         for frame in (now, lead):
             for key in np.flatnonzero(goal.keys[frame] & ~self.skip[frame]):
-                finger = goal.fingers[frame, key] - self.finger_offset
+                finger = planner.fingers[frame, key] - self.finger_offset
                 if not 0 <= finger < FINGERS_PER_HAND or active[finger]:
                     continue
                 point = self._press_point(planner, int(key), finger)
@@ -613,7 +819,7 @@ class _Hand:
         goal = planner.goal
         height = C.FINGERTIP_CAPSULE_RADIUS_M + planner.config.hover_height_m
         for key in np.flatnonzero(goal.keys[frame] & ~self.skip[frame]):
-            finger = goal.fingers[frame, key] - self.finger_offset
+            finger = planner.fingers[frame, key] - self.finger_offset
             if 0 <= finger < FINGERS_PER_HAND and not active[finger]:
                 targets[finger] = self._press_point(planner, int(key), finger)
                 targets[finger, 2] = planner.key_top_z[key] + height
@@ -713,6 +919,13 @@ class _Finger:
         """Index of the sampled posture whose fingertip is closest to ``target`` (forearm frame)."""
         return int(self._tree.query(target)[1])
 
+
+#: A hand's plan for a song: what ``IKPlanner._plan`` sets (read only once made).
+_PLAN_ARRAYS = ("tx_plan", "busy", "skip", "free", "shift_to", "tx_path", "tx_servo")
+#: Plans by (goal frames, scene options, config): a new episode of the same environment
+#: reuses its plan (up to ~1 s for a minute of music) instead of making it again.
+_PLANS: dict[tuple[int, SceneOptions, PlannerConfig], tuple[Any, ...]] = {}
+_PLANS_KEPT = 8
 
 #: Posture samples of every finger, (samples (S, dof), fingertips (S, 3)) per finger, keyed by
 #: the scene's options (the model is built from them deterministically) and the planner's

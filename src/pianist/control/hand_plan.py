@@ -1,0 +1,459 @@
+"""Where a hand is along the keyboard over a whole piece, chosen before the first step.
+
+A dynamic programme over the piece's frames and a grid of candidate forearm slide positions
+(Viterbi): each frame's cost is what a hand at that position loses, and each move between
+frames costs what the move loses. The cheapest path over the whole piece is the plan.
+
+- **Staying** at position p for frame t costs, for each key due then for this hand, 1 if its
+  finger cannot press it from p at all (the key-frame is lost), ``edge_cost`` if it can only
+  at the edge of its reach (where fingers slip), plus a small ``comfort_cost`` that grows with
+  the distance from where the fingers rest over their keys.
+- **Moving** from p to q between frames t-1 and t: a move of up to ``shift_m`` is made with the
+  fingers on the keys and costs a little, more for every key held through it; a larger one
+  (a shift) lifts
+  the hand's fingers for the frames the slide needs to get there (from its servo's measured
+  speed, :func:`move_frames`), so it costs the hand's key-frames due in those frames before t,
+  plus ``shift_cost``.
+
+So the plan stays put while every key is reachable, moves during rests when it can, starts
+long jumps early enough for the slide to arrive, and, where a chord is wider than the hand,
+keeps the most keys (the outer voice weighted higher), which :func:`skipped_keys` reports.
+Everything here is arrays in, arrays out; lengths in m, times in frames (control steps).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+#: Worth of keeping a held key's finger on it, against 1 for playing a key at all.
+HELD_BONUS = 0.5
+
+#: Average acceleration of a forearm slide's servo over a stop-to-stop move, m/s^2, fitted to
+#: the arrival times measured in closed loop (kp 300, ~3.8 kg, command range ~1.2 m): within
+#: ~8 mm after 2 steps of 0.05 s for 5 cm, 3 for 10 cm, 4 for 20 cm, 6 for 40 cm.
+SLIDE_ACCELERATION_M_S2 = 20.0
+
+
+@dataclass(frozen=True)
+class HandPlanCosts:
+    """Weights of the hand-position programme, in lost key-frames (see the module docstring)."""
+
+    grid_m: float = 0.004
+    """Spacing of the candidate slide positions (the alignment tolerance is ~9 mm)."""
+    edge_cost: float = 0.25
+    """A key its finger reaches only at the edge of its reach, per frame."""
+    outer_voice_weight: float = 1.5
+    """Weight of the outer voice's keys (top of the right hand, bass of the left)."""
+    comfort_cost: float = 0.005
+    """Per frame, per (cm from the fingers' resting places over their keys)^2 ..."""
+    comfort_cap: float = 0.05
+    """... capped at this per frame."""
+    shift_m: float = 0.015
+    """Largest move made with the fingers on the keys."""
+    small_move_cost: float = 0.2
+    """Cost of a move made with the fingers on the keys ..."""
+    small_move_cost_per_m: float = 10.0
+    """... plus this per metre ..."""
+    held_move_cost: float = 1.0
+    """... plus this per key held through it (a move drags the held keys' fingers, and
+    may give a held key to another finger, which lets it up)."""
+    shift_cost: float = 0.3
+    """Cost of a shift on top of the key-frames it loses."""
+
+
+def move_frames(distance_m: np.ndarray | float, dt: float) -> np.ndarray:
+    """Control steps a slide needs for a stop-to-stop move of ``distance_m`` (at least 1).
+
+    Bang-bang at :data:`SLIDE_ACCELERATION_M_S2`: t = 2 sqrt(d / a).
+    """
+    seconds = 2.0 * np.sqrt(np.abs(np.asarray(distance_m, dtype=float)) / SLIDE_ACCELERATION_M_S2)
+    return np.maximum(1, np.ceil(seconds / dt - 1e-9)).astype(int)
+
+
+def free_frames(distance_m: np.ndarray | float, dt: float) -> np.ndarray:
+    """Frames a shift of ``distance_m`` keeps the hand's fingers off the keys: the slide's
+    :func:`move_frames`, and for a move of several steps one more before it, for the fingers
+    to come up before the hand flies (a finger still on a key is dragged onto the next)."""
+    steps = move_frames(distance_m, dt)
+    return steps + (steps >= 2)
+
+
+@dataclass(frozen=True)
+class HandPlan:
+    """The plan of one hand over a piece of T frames.
+
+    Attributes:
+        position: (T,) slide position (m) at every frame; frames without notes hold the next
+            note's position (the hand goes there as early as it can).
+        busy: (T,) whether the hand has a key due at the frame.
+        fingers: (T, 88) the finger (0 thumb .. 4 little) that presses each of the hand's due
+            keys, -1 where none: the song's own, or with ``refinger`` the plan's.
+        skip: (T, 88) keys of this hand that the plan leaves unplayed (out of reach from the
+            planned position: a chord wider than the hand).
+        cost: the plan's total cost (lost key-frames and penalties).
+    """
+
+    position: np.ndarray
+    busy: np.ndarray
+    fingers: np.ndarray
+    skip: np.ndarray
+    cost: float
+
+
+def plan_hand(
+    keys: np.ndarray,
+    fingers: np.ndarray,
+    key_y: np.ndarray,
+    black: np.ndarray,
+    full_reach: np.ndarray,
+    reach: np.ndarray,
+    rest_offset: np.ndarray,
+    slide_range: tuple[float, float],
+    start: float,
+    dt: float,
+    outer: str,
+    costs: HandPlanCosts | None = None,
+    refinger: bool = False,
+    extra_cost: Callable[[np.ndarray], np.ndarray] | None = None,
+) -> HandPlan:
+    """The cheapest slide positions over a piece for one hand (module docstring).
+
+    Args:
+        keys: (T, 88) bool, keys due at each frame.
+        fingers: (T, 88) int, the finger of each due key *in this hand* (0 thumb .. 4
+            little), -1 for keys of the other hand or none.
+        key_y: (88,) press point of each key across the keyboard (m).
+        black: (88,) bool, black keys.
+        full_reach: (5, 2, 2) per finger, white (0) / black (1) key: the lowest and highest
+            (key y - slide position) at which the finger can press the key.
+        reach: (5, 2, 2) the same, without the edges where a finger slips.
+        rest_offset: (5,) key y - slide position that puts each finger at its resting place.
+        slide_range: (low, high) slide positions (m).
+        start: the slide's position before the first frame (m).
+        dt: control step (s).
+        outer: "top" (right hand) or "bottom" (left hand): the voice kept first.
+        costs: the weights (:class:`HandPlanCosts`).
+        refinger: choose the fingers too: at every position, each key goes to a finger that
+            reaches it from there, in order across the hand (the most keys, the outer voice
+            first); ``fingers`` then only says which keys are this hand's.
+        extra_cost: candidate positions (P,) -> (T, P) further cost of each (e.g. coming too
+            close to the other forearm).
+    Returns:
+        The :class:`HandPlan`.
+    """
+    c = costs or HandPlanCosts()
+    T = keys.shape[0]
+    mine = keys & (fingers >= 0)
+    busy = np.asarray(mine.any(axis=1))
+    skip = np.zeros(keys.shape, dtype=bool)
+    if not busy.any():
+        return HandPlan(np.full(T, float(start)), busy, np.where(mine, fingers, -1), skip, 0.0)
+    frames, key_ids = np.nonzero(mine)
+    offset = key_y[key_ids]
+    colour = black[key_ids].astype(int)
+    # Candidate positions: every slide position that brings some key within some reach.
+    span_lo, span_hi = float(np.min(full_reach[..., 0])), float(np.max(full_reach[..., 1]))
+    low = max(slide_range[0], float(np.min(offset)) - span_hi - c.grid_m)
+    high = min(slide_range[1], float(np.max(offset)) - span_lo + c.grid_m)
+    grid = np.arange(low, high + c.grid_m / 2, c.grid_m) if high > low else np.array([low])
+    weights = _voice_weights(frames, offset, T, outer, c.outer_voice_weight)
+    if refinger:
+        stay = _matching_costs(
+            frames, key_ids, key_y, black, weights, full_reach, reach, grid, T, c
+        )
+        centre_offset = np.full(len(frames), rest_offset[len(rest_offset) // 2])
+    else:
+        finger_ids = fingers[frames, key_ids]
+        lo, hi = full_reach[finger_ids, colour].T  # (n,) each
+        lo_in, hi_in = reach[finger_ids, colour].T
+        stay = _stay_costs(frames, offset, lo, hi, lo_in, hi_in, weights, grid, T, c)
+        centre_offset = rest_offset[finger_ids]
+    stay += _comfort_costs(frames, offset - centre_offset, grid, T, c)
+    if extra_cost is not None:
+        stay += extra_cost(grid)
+    lost = np.zeros(T + 1)
+    np.add.at(lost, frames + 1, weights)
+    lost = np.cumsum(lost)  # lost[t]: weighted key-frames due before frame t
+    held = np.zeros(T)  # keys of the hand due at both t - 1 and t
+    held[1:] = (mine[1:] & mine[:-1]).sum(axis=1)
+    # The hand moves only where its keys change: frames with the same keys form one segment.
+    starts = np.flatnonzero(np.r_[True, (mine[1:] != mine[:-1]).any(axis=1)])
+    path, total = _viterbi(stay, lost, held, starts, grid, start, dt, c)
+    position = grid[path]
+    # Frames without notes hold the next note's position; after the last note, stay.
+    known = np.flatnonzero(busy)
+    nxt = np.minimum(np.searchsorted(known, np.arange(T)), known.size - 1)
+    position = np.where(busy, position, position[known[nxt]])
+    if refinger:
+        planned = _assign_fingers(
+            mine,
+            key_y,
+            black,
+            position,
+            full_reach,
+            reach,
+            outer,
+            c.outer_voice_weight,
+            c.edge_cost,
+        )
+    else:
+        planned = np.where(mine, fingers, -1)
+        relative = offset - position[frames]
+        skip[frames, key_ids] = ~_reachable(relative, lo, hi)
+    skip |= mine & (planned < 0)
+    return HandPlan(position, busy, planned, skip, total)
+
+
+def finger_order(full_reach: np.ndarray) -> np.ndarray:
+    """(5,) the fingers in order across the keyboard (ascending y): by their white-key reach's
+    centre (thumb first for a right hand, little finger first for a left)."""
+    return np.argsort(full_reach[:, 0].mean(axis=1), kind="stable")
+
+
+def _monotone_matching(can: np.ndarray, value: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Best order-keeping assignment of n keys (ascending y) to 5 fingers (ascending y).
+
+    Args:
+        can: (n, 5, P) whether finger j (in order) can press key i from candidate p.
+        value: (n, 5, P) what pressing key i with finger j from p is worth.
+    Returns:
+        best (n + 1, 6, P): the best total value of the first i keys with the first j fingers;
+        and took (n, 5, P) bool: whether the best used the pair (i, j).
+    """
+    n, F, P = can.shape
+    best = np.zeros((n + 1, F + 1, P))
+    took = np.zeros((n, F, P), dtype=bool)
+    for i in range(1, n + 1):
+        for j in range(1, F + 1):
+            pair = best[i - 1, j - 1] + np.where(can[i - 1, j - 1], value[i - 1, j - 1], -np.inf)
+            skip_key = best[i - 1, j]
+            skip_finger = best[i, j - 1]
+            take = pair > np.maximum(skip_key, skip_finger)
+            took[i - 1, j - 1] = take
+            best[i, j] = np.where(take, pair, np.maximum(skip_key, skip_finger))
+    return best, took
+
+
+def _frame_pairs(
+    key_ids: np.ndarray,
+    key_y: np.ndarray,
+    black: np.ndarray,
+    full_reach: np.ndarray,
+    reach: np.ndarray,
+    order: np.ndarray,
+    positions: np.ndarray,
+    c_edge: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """For one frame's keys (sorted by y) at P positions: whether each finger (in order
+    across the hand) can press each key, (n, 5, P), and what it is worth, (n, 5, P): 1, less
+    ``c_edge`` at the edge of the finger's reach."""
+    relative = key_y[key_ids][:, None, None] - positions[None, None, :]  # (n, 1, P)
+    colour = black[key_ids].astype(int)
+    full = full_reach[order][:, colour].transpose(1, 0, 2)  # (n, 5, 2)
+    inner = reach[order][:, colour].transpose(1, 0, 2)
+    can = _reachable(relative, full[..., 0, None], full[..., 1, None])
+    edge = can & ~_reachable(relative, inner[..., 0, None], inner[..., 1, None])
+    value = 1.0 - c_edge * edge
+    return can, value
+
+
+def _matching_costs(
+    frames: np.ndarray,
+    key_ids: np.ndarray,
+    key_y: np.ndarray,
+    black: np.ndarray,
+    weights: np.ndarray,
+    full_reach: np.ndarray,
+    reach: np.ndarray,
+    grid: np.ndarray,
+    T: int,
+    c: HandPlanCosts,
+) -> np.ndarray:
+    """(T, P) weighted key-frames each candidate loses when the plan picks the fingers."""
+    order = finger_order(full_reach)
+    stay = np.zeros((T, len(grid)))
+    cache: dict[tuple[int, ...], np.ndarray] = {}
+    bounds = np.flatnonzero(np.diff(frames)) + 1
+    for group in np.split(np.arange(len(frames)), bounds):
+        ids = key_ids[group]
+        sorting = np.argsort(key_y[ids], kind="stable")
+        ids, w = ids[sorting], weights[group][sorting]
+        signature = (*ids.tolist(), *np.round(w, 3).tolist())
+        if signature not in cache:
+            can, value = _frame_pairs(
+                ids, key_y, black, full_reach, reach, order, grid, c.edge_cost
+            )
+            best, _ = _monotone_matching(can, value * w[:, None, None])
+            cache[signature] = w.sum() - best[-1, -1]
+        stay[frames[group[0]]] = cache[signature]
+    return stay
+
+
+def _assign_fingers(
+    mine: np.ndarray,
+    key_y: np.ndarray,
+    black: np.ndarray,
+    position: np.ndarray,
+    full_reach: np.ndarray,
+    reach: np.ndarray,
+    outer: str,
+    outer_weight: float,
+    edge_cost: float,
+) -> np.ndarray:
+    """(T, 88) the finger of each of the hand's due keys at the planned positions (-1: none).
+
+    A key keeps the finger that struck it while it is held and that finger still reaches it
+    (a finger that changed mid-note would let the key up).
+    """
+    order = finger_order(full_reach)
+    out = np.full(mine.shape, -1)
+    for t in np.flatnonzero(mine.any(axis=1)).tolist():
+        ids = np.flatnonzero(mine[t])
+        ids = ids[np.argsort(key_y[ids], kind="stable")]
+        held = (t > 0) & mine[t - 1, ids] & (out[t - 1, ids] >= 0)
+        if t > 0 and held.all() and position[t] == position[t - 1]:
+            out[t, ids] = out[t - 1, ids]
+            continue
+        extreme = np.argmax(key_y[ids]) if outer == "top" else np.argmin(key_y[ids])
+        w = np.ones(len(ids))
+        w[extreme] = outer_weight  # the outer voice first
+        can, value = _frame_pairs(
+            ids, key_y, black, full_reach, reach, order, position[t : t + 1], edge_cost
+        )
+        value = value * w[:, None, None]
+        if t > 0:
+            # A held key is worth more with the finger already on it.
+            previous = np.where(mine[t - 1, ids], out[t - 1, ids], -1)
+            value += HELD_BONUS * (order[None, :] == previous[:, None])[..., None]
+        pairs = _best_matching(can[..., 0].tolist(), value[..., 0].tolist())
+        for i, j in pairs:
+            out[t, ids[i]] = order[j]
+    return out
+
+
+def _best_matching(can: list[list[bool]], value: list[list[float]]) -> list[tuple[int, int]]:
+    """:func:`_monotone_matching` for one position, in plain Python (a few keys and five
+    fingers: NumPy's per-call overhead would dominate); returns the (key, finger) pairs."""
+    n, F = len(can), len(can[0]) if can else 0
+    best = [[0.0] * (F + 1) for _ in range(n + 1)]
+    took = [[False] * F for _ in range(n)]
+    for i in range(1, n + 1):
+        row, previous = best[i], best[i - 1]
+        for j in range(1, F + 1):
+            other = max(previous[j], row[j - 1])
+            if can[i - 1][j - 1] and previous[j - 1] + value[i - 1][j - 1] > other:
+                row[j] = previous[j - 1] + value[i - 1][j - 1]
+                took[i - 1][j - 1] = True
+            else:
+                row[j] = other
+    pairs = []
+    i, j = n, F
+    while i > 0 and j > 0:
+        if took[i - 1][j - 1]:
+            pairs.append((i - 1, j - 1))
+            i, j = i - 1, j - 1
+        elif best[i - 1][j] >= best[i][j - 1]:
+            i -= 1
+        else:
+            j -= 1
+    return pairs
+
+
+def _voice_weights(
+    frames: np.ndarray, offset: np.ndarray, T: int, outer: str, weight: float
+) -> np.ndarray:
+    """(n,) weight of each due key: ``weight`` for the frame's outer voice, else 1."""
+    extreme = np.full(T, -np.inf if outer == "top" else np.inf)
+    if outer == "top":
+        np.maximum.at(extreme, frames, offset)
+    else:
+        np.minimum.at(extreme, frames, offset)
+    return np.where(offset == extreme[frames], weight, 1.0)
+
+
+def _reachable(relative: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    return (relative >= lo - 1e-9) & (relative <= hi + 1e-9)
+
+
+def _stay_costs(
+    frames: np.ndarray,
+    offset: np.ndarray,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    lo_in: np.ndarray,
+    hi_in: np.ndarray,
+    weights: np.ndarray,
+    grid: np.ndarray,
+    T: int,
+    c: HandPlanCosts,
+) -> np.ndarray:
+    """(T, P) cost of each frame's keys from each candidate position."""
+    relative = offset[:, None] - grid[None, :]  # (n, P)
+    out_of_reach = ~_reachable(relative, lo[:, None], hi[:, None])
+    at_edge = ~out_of_reach & ~_reachable(relative, lo_in[:, None], hi_in[:, None])
+    per_key = weights[:, None] * (out_of_reach + c.edge_cost * at_edge)
+    stay = np.zeros((T, len(grid)))
+    np.add.at(stay, frames, per_key)
+    return stay
+
+
+def _comfort_costs(
+    frames: np.ndarray, wanted: np.ndarray, grid: np.ndarray, T: int, c: HandPlanCosts
+) -> np.ndarray:
+    """(T, P) cost of each candidate's distance from the frame's resting position (the mean
+    over its keys of where each key's finger rests over it)."""
+    total = np.zeros(T)
+    count = np.zeros(T)
+    np.add.at(total, frames, wanted)
+    np.add.at(count, frames, 1.0)
+    busy = count > 0
+    centre = np.where(busy, total / np.maximum(count, 1.0), 0.0)
+    off_cm = (grid[None, :] - centre[:, None]) / 0.01
+    return np.where(busy[:, None], np.minimum(c.comfort_cost * off_cm**2, c.comfort_cap), 0.0)
+
+
+def _viterbi(
+    stay: np.ndarray,
+    lost: np.ndarray,
+    held: np.ndarray,
+    starts: np.ndarray,
+    grid: np.ndarray,
+    start: float,
+    dt: float,
+    c: HandPlanCosts,
+) -> tuple[np.ndarray, float]:
+    """The cheapest path of candidate indices (T,) and its cost; the hand may move only at
+    the ``starts`` of segments (frame indices, the first 0)."""
+    T, P = stay.shape
+    distance = np.abs(grid[:, None] - grid[None, :])  # (from, to)
+    shift = distance > c.shift_m
+    frames_needed = free_frames(distance, dt)  # (P, P)
+    moved = distance > 1e-9
+    small = np.where(moved, c.small_move_cost + c.small_move_cost_per_m * distance, 0.0)
+    # The hand comes from its start position: until the slide can have got to a candidate,
+    # being there plays none of the frame's keys.
+    arrival = move_frames(np.abs(grid - start), dt) - 1  # (P,) first frame it can be there
+    every_key = lost[1:] - lost[:-1]  # (T,) weight of all the keys due at each frame
+    early = np.arange(T)[:, None] < arrival[None, :]
+    stay = np.where(early, every_key[:, None], stay)
+    segment_stay = np.add.reduceat(stay, starts, axis=0)  # (S, P)
+    S = len(starts)
+    value = segment_stay[0].copy()
+    back = np.zeros((S, P), dtype=np.int32)
+    for s in range(1, S):
+        t = starts[s]
+        # Key-frames a shift into frame t loses: those of the frames it needs before t.
+        before = lost[t] - lost[np.maximum(t - frames_needed, 0)]
+        move = np.where(shift, before + c.shift_cost, small + moved * held[t] * c.held_move_cost)
+        total = value[:, None] + move
+        back[s] = np.argmin(total, axis=0)
+        value = total[back[s], np.arange(P)] + segment_stay[s]
+    choice = np.empty(S, dtype=np.int64)
+    choice[-1] = int(np.argmin(value))
+    for s in range(S - 1, 0, -1):
+        choice[s - 1] = back[s, choice[s]]
+    lengths = np.diff(np.r_[starts, T])
+    return np.repeat(choice, lengths), float(value[choice[-1]])
