@@ -351,7 +351,7 @@ def test_a_shift_holds_the_keys_before_it_as_long_as_it_can():
 
 
 def test_posture_samples_are_made_once_per_scene_and_reused_exactly(monkeypatch):
-    from pianist.control import planner as module
+    from pianist.control.planner import postures as module
 
     monkeypatch.setattr(module, "_POSTURES", {})
     calls = []

@@ -1,0 +1,45 @@
+"""An inverse-kinematics planner: plays a song whose notes have hands, with no training.
+
+At reset it plans where each forearm will be along the keyboard over the whole piece, either
+frame by frame with the song's fingering (the hand goes where the assigned fingers reach
+their keys, and stays while they still do) or over the whole piece at once
+(:mod:`pianist.control.hand_plan`: a dynamic programme that also chooses the fingers the
+Shadow hand can actually span, and shares keys one hand cannot reach with the other), and
+keeps the plan that leaves the most notes playable (``PlannerConfig.hand_planning``). Then
+each control step it
+
+1. steers each forearm's slide along that plan: a quick move that ends as the note starts
+   (a jump takes the steps the slide's servo needs, on a minimum-jerk path), in closed loop
+   through the servo's exact dynamics; for a large move the fingers let go of their keys and
+   travel just above the next ones; with the optional height slide (``tz``) the forearm is
+   held low enough for the thumb to reach a key's bottom, pushed down harder when the keys
+   lift it;
+2. gives every fingertip a target: the assigned fingertip pressed below the top of each key
+   due at the coming frame (once it is over the key), fingers due soon hovering above their
+   keys, the others lifted to a fixed posture clear of the keyboard;
+3. solves each finger's inverse kinematics with the wrist held still, so the five fingers are
+   independent small problems: the nearest of a few thousand sampled postures of that finger
+   (computed once at reset, which avoids the local minima the thumb falls into), then a few
+   damped least-squares iterations on ``mujoco.mj_jacSite`` over the finger's actuated joints
+   (a J1+J2 tendon counts as one joint, its angle split evenly), clipped to the joint limits;
+4. sends those angles as the position-servo controls; the pedal follows the goal.
+
+The stages, one module each (read in this order):
+
+- :mod:`~pianist.control.planner.config`: :class:`PlannerConfig`, :data:`ENV_OPTIONS`;
+- :mod:`~pianist.control.planner.postures`: each finger's joints and sampled postures, the
+  lifted posture and each finger's reach;
+- :mod:`~pianist.control.planner.forearm`: the forearm's plan along the keyboard and its
+  path, steered in closed loop (step 1);
+- :mod:`~pianist.control.planner.targets`: each fingertip's target (step 2);
+- :mod:`~pianist.control.planner.ik`: each finger's inverse kinematics (step 3);
+- :mod:`~pianist.control.planner.hand`: :class:`Hand`, one hand's indices and state, with
+  the stages' methods;
+- :mod:`~pianist.control.planner.controller`: :class:`IKPlanner`, the plan choice and the
+  step (step 4).
+"""
+
+from pianist.control.planner.config import ENV_OPTIONS, PlannerConfig
+from pianist.control.planner.controller import IKPlanner
+
+__all__ = ["ENV_OPTIONS", "IKPlanner", "PlannerConfig"]

@@ -1,0 +1,228 @@
+"""Tuning of the planner, the environment it plays in, and what its stages share.
+
+- :class:`PlannerConfig`: every setting, lengths in m, times in s, angles in rad, grouped by
+  the stage that reads it. Frozen and hashable: it keys the posture and plan caches.
+- :data:`ENV_OPTIONS`: the :class:`pianist.env.PianoEnv` options the planner plays best with.
+- :class:`PlannerState`: what the per-hand stages (forearm, targets) read of the planner
+  during an episode, with shapes and units.
+- ``FINGERS_PER_HAND`` and ``FINGER_PREFIXES``: a hand's fingers, thumb to little finger.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, Literal, Protocol
+
+import numpy as np
+
+from pianist.control.hand_plan import HandPlanCosts
+
+if TYPE_CHECKING:
+    import mujoco
+
+    from pianist.env.handle import ControlHandle
+    from pianist.music import GoalFrames
+
+FINGERS_PER_HAND = 5
+FINGER_PREFIXES = ("TH", "FF", "MF", "RF", "LF")
+
+
+@dataclass(frozen=True)
+class PlannerConfig:
+    """Tuning of :class:`IKPlanner`; lengths in m, times in s, angles in rad."""
+
+    # ---- Keys and press points: where on each key a finger presses, and how deep.
+    white_press_x_m: float = 0.045
+    """Where along a white key (x from its centre, towards the player) a finger presses it,
+    in front of the black keys."""
+    thumb_white_press_x_m: float = 0.064
+    """The same for the thumb, which reaches lowest near the front edge."""
+    black_press_x_m: float = 0.01
+    """Where along a black key (world x) a finger presses it, near its front end."""
+    white_press_depth_m: float = 0.025
+    """How far below a white key's top the fingertip is sent: past the key's travel, so the
+    position servo keeps pushing it down."""
+    black_press_depth_m: float = 0.045
+    """The same for a black key (shorter lever, so it needs more force)."""
+    thumb_extra_depth_m: float = 0.02
+    """Added to the thumb's press depth: its servos are weak for the force a key needs."""
+
+    # ---- Forearm and shifts (forearm.py): where the hand goes, how it moves, height, wrist.
+    skip_out_of_reach: bool = True
+    """A chord struck together that no hand position covers (an octave is beyond the Shadow
+    hand's span) is played without the keys that cannot be reached along with the most
+    others, keeping the outer voice (the bass in the left hand, the top in the right); its
+    fingers stay off. Otherwise the hand goes halfway and usually reaches none of them."""
+    lazy_m: float = 0.02
+    """The hand stays where it is for the next notes if every finger still reaches its key
+    from there and it is at most this far from where those notes would put it (0: always
+    re-centre). Every move costs the held keys frames; scales gain most."""
+    reach_margin: float = 0.3
+    """Part of a finger's sampled reach (across the keys) left unused at each end when a chord
+    forces a finger away from its resting place: a finger at the edge of its reach slips."""
+    reach_depth_m: float = 0.008
+    """How far below a key's top a sampled fingertip must go to count as reaching the key."""
+    reach_x_tolerance_m: float = 0.012
+    """How close (along the key) to the press point a sampled fingertip must be to count."""
+    thumb_offset_m: float = 0.03
+    """How far the thumb presses to the left (right hand; mirrored for the left) of the
+    index finger's rest position: the thumb, without its rotation joint, reaches key depth
+    only under the side of the palm."""
+    forearm_separation_m: float = 0.17
+    """Closest the two forearm roots may come along the keyboard (they touch below ~0.15)."""
+    forearm_move_s: float = 0.05
+    """Duration of the forearm's move to a new hand position, ending ``press_lead_frames``
+    before the note (a shift: ``shift_lead_frames``): one control step (the slide is steered
+    in closed loop, and the wrist held against the swing), so the fingers are off their keys
+    as briefly as possible."""
+    forearm_lead_s: float = 0.05
+    """The fingers aim from where the forearm will be this much later at its current velocity
+    (0: from where it is)."""
+    shift_threshold_m: float = 0.015
+    """A forearm move larger than this lifts the hand's fingers for its duration."""
+    shift_lead_frames: int = 0
+    """Frames before its note a shift (a move the fingers let go for, see
+    ``shift_threshold_m``) ends, at most ``press_lead_frames``: 0, the hand arrives as the
+    note's frame begins and its fingers press from the hover they travelled in. The keys
+    before the shift are then held a frame longer (with 1, the D major scale's F#4 fell
+    silent for two frames before the thumb passed under, now for one)."""
+    hand_height_m: float = -0.03
+    """Height command of the forearm's ``tz`` slide (when the scene has one)."""
+    height_feedback: float = 3.0
+    """Gain of the forearm height command on how far the hand has risen above its height."""
+    wrist_pose: tuple[float, float] = (0.0, 0.0)
+    """WRJ2 and WRJ1, held constant, when the forearm has its height slide."""
+    wrist_pose_without_tz: tuple[float, float] = (0.0, 0.25)
+    """The same without it: the wrist flexed, else the fingers cannot reach a key's bottom
+    from the home height."""
+    wrist_feedback: tuple[float, float] = (2.0, 0.0)
+    """Gains (WRJ2, WRJ1) of the wrist commands on how far each joint is off its pose. A
+    forearm move swings the hand sideways on its soft wrist servo (kp 10): left alone, WRJ2
+    is still ~0.04 rad off (4 mm at the fingertips) a step after a shift and then drifts a
+    few mm, enough to land a finger beside its key; with the feedback it is back within
+    ~0.01 rad. (Stiffening the flexion WRJ1 the same way leaves the thumb too high to sound
+    its key.)"""
+
+    # ---- Fingers' press and hover decisions (targets.py): press, hover or lift, how high.
+    press_lead_frames: int = 1
+    """Frames ahead of the scored frame whose keys the fingers go for (servo lag)."""
+    hover_lead_s: float = 0.25
+    """How long before its note a finger comes to hover over its key."""
+    hover_height_m: float = 0.01
+    """Clearance above the key top of a finger that is due soon, or not yet over its key."""
+    release_height_m: float = 0.003
+    """Clearance above the key top a finger goes to between two strikes of one key."""
+    transfer_height_m: float = 0.003
+    """Clearance above the key top of a finger going straight from one key to the next (a
+    chord change), lower than ``hover_height_m``: the key it leaves rises slowly and holds
+    it by friction, so it lands ~1 step sooner from this low path."""
+    lift_height_m: float = 0.035
+    """Clearance above the white keys of a finger that is not due."""
+    align_tolerance_m: float = 0.009
+    """How close (across the keys) to a white key's press point a finger must be before it
+    presses: a finger that lands beside its key sticks to the neighbour by friction."""
+    black_align_tolerance_m: float = 0.008
+    """The same for a black key. (Half the white one, 4.5 mm, held a finger back for a frame
+    while the hand was still settling from a move: every black key of the D major scale
+    sounded a frame late.)"""
+    align_along_m: float = 0.02
+    """How far behind the press point (x) a finger other than the thumb may be and press a
+    white key (further back it would land on a black key). Along a black key there is no
+    such limit: a finger that slid back on it still presses it."""
+    keep_pressing_ratio: float = 1.3
+    """A pressing finger keeps pressing until it is this many tolerances off its key."""
+    stuck_frames: int = 2
+    """Steps a finger may hover off its key without moving before it presses from there."""
+    stuck_reach_m: float = 0.013
+    """How far off its key (across) a stuck finger may be and still press from there."""
+    still_m: float = 0.0015
+    """A fingertip that moved less than this in a step stands still."""
+    hover_in_shift: bool = True
+    """During a large forearm move the fingers of the note it is for hover over their keys
+    (instead of taking their lifted posture)."""
+    jump_lift_m: float = 0.03
+    """...except a finger still low on the keys (within ``jump_low_m`` of the white keys' top)
+    whose key is further than this across the keyboard: it takes its lifted posture for the
+    move. Skimming towards a key it cannot reach yet, a finger is dragged across the keys and
+    sticks to one (in the original's chord progression the right thumb, 9 cm from its next
+    C4, caught F4 and held it, and the hand, through the whole last chord)."""
+    jump_low_m: float = 0.01
+    """Height above the white keys' top below which a finger counts as low (see above)."""
+    hover_stops_at_shift: bool = True
+    """Fingers hover only over keys due before the hand's next large move: the keys after it
+    are out of reach from here, and a finger (the thumb above all) that strains towards one
+    dips onto the keys on its way."""
+
+    # ---- Plan choice (controller.py): frame by frame or the whole piece, whose fingering.
+    hand_planning: Literal["frame", "piece", "best"] = "best"
+    """How the hand positions are planned: ``frame`` by frame with the song's fingering,
+    staying put within ``lazy_m``; over the whole ``piece``
+    (:mod:`pianist.control.hand_plan`) with the fingering ``refinger`` says; or the ``best``
+    of the frame-by-frame plan, the whole-piece plan with the song's fingering and the
+    whole-piece plan with its own, in that order of preference: a plan is chosen over the
+    ones before it only if it leaves at least ``piece_plan_margin`` more of the song's
+    key-frames playable (wide chords, jumps, a fingering the Shadow hand cannot span)."""
+    piece_plan_margin: float = 0.02
+    """Share of the song's key-frames a later plan must add to be chosen (see above)."""
+    playable_tolerance_m: float = 0.005
+    """How far outside a finger's sampled reach a key still counts as playable when plans
+    are compared (the sampled reach is a little conservative: the frame-by-frame plan's
+    chords press keys a few mm beyond it)."""
+    hand_plan: HandPlanCosts = HandPlanCosts()
+    """Weights of the whole-piece plan."""
+    share_keys: bool = True
+    """With the plan's fingering, offer the keys one hand cannot reach to the other hand."""
+    clearance_cost: float = 5.0
+    """Per frame, of a planned forearm position closer than ``forearm_separation_m`` to the
+    other forearm's (in lost key-frames)."""
+    refinger: bool = True
+    """With ``hand_planning="piece"``, choose the fingers too (each key to a finger of its hand
+    that reaches it from the planned position) instead of the song's: a pianist's fingering
+    spans more than the Shadow hand, whose fingers other than the thumb each reach about one
+    white key from a given hand position."""
+
+    # ---- IK (postures.py, ik.py): sampled start postures, damped least squares, the push.
+    samples: int = 4000
+    """Sampled postures per finger for the nearest-posture start of the IK."""
+    iterations: int = 3
+    damping: float = 0.01
+    rest_weight: float = 1e-4
+    """Pull towards the sampled start posture (per rad^2, against tip error in m^2)."""
+    step_limit_rad: float = 0.3
+    """Largest change of one joint in one IK iteration."""
+    thumb_push_rad: float = 0.3
+    """Extra command of a pressing thumb along the joint direction that lowers its tip."""
+    finger_push_rad: float = 0.0
+    """The same for the other fingers."""
+
+
+#: Environment options the planner plays best with: the forearm's height slide added. In the
+#: paper's action space the Shadow thumb cannot press a white key: with the forearm at its home
+#: height its fingertip capsule stops ~1.5 mm above the depth at which a key sounds, even with
+#: the wrist flexed (measured by sampling every thumb and wrist angle).
+ENV_OPTIONS: dict[str, Any] = {"forearm_dofs": ("tx", "ty", "tz")}
+
+
+class PlannerState(Protocol):
+    """What the per-hand stages read of the planner (:class:`IKPlanner` sets it at reset)."""
+
+    config: PlannerConfig
+    handle: ControlHandle
+    """The environment's simulator state (``data``) and step."""
+    goal: GoalFrames
+    """The song's goal frames: ``keys`` (T, 88) bool due, ``fingers`` (T, 88) int."""
+    scratch: mujoco.MjData
+    """Scratch state the fingers are solved in (forearm and wrist as commanded)."""
+    fingers: np.ndarray
+    """(T, 88) int: the finger that presses each due key, 0-4 right hand, 5-9 left (the
+    song's or the whole-piece plan's)."""
+    key_point: np.ndarray
+    """(88, 3) m: where a finger presses each key (world frame)."""
+    key_top_z: np.ndarray
+    """(88,) m: height of each key's top."""
+    key_depth: np.ndarray
+    """(88,) m: how far below its top a fingertip is sent to press each key."""
+    key_qpos: np.ndarray
+    """(88,) int: each key's joint in ``qpos``."""
+    key_threshold: np.ndarray
+    """(88,) rad: the key angle past which a key counts as down."""

@@ -1,0 +1,197 @@
+"""The controller, :class:`IKPlanner`: its reset (postures, hand plans) and its step.
+
+``reset(env)`` reads the environment through its control handle, sets the keys' press
+points and heights (see :class:`PlannerState`), builds the :class:`Hand` s, gives their
+fingers their posture samples (:mod:`postures`), and plans the hands: frame by frame, over
+the whole piece, or the best of those plans (``PlannerConfig.hand_planning``), kept in
+:data:`_PLANS` for the next episode of the same song and scene.
+
+``act()`` returns the action, shape (nu + 1,) float32 in [-1, 1]: the forearm slides'
+commands (:mod:`forearm`), the wrist's, each finger's joint angles (:mod:`targets`, then
+:mod:`ik`), and the sustain pedal from the goal.
+"""
+
+from __future__ import annotations
+
+import weakref
+from functools import partial
+from typing import TYPE_CHECKING, Any
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+
+from pianist.control.base import BaseController
+from pianist.control.planner.config import ENV_OPTIONS, PlannerConfig
+from pianist.control.planner.forearm import _keep_forearms_apart
+from pianist.control.planner.hand import Hand
+from pianist.control.planner.postures import _use_postures
+from pianist.env.handle import control_handle
+from pianist.sim import constants as C
+from pianist.sim.scene import SceneOptions
+
+if TYPE_CHECKING:
+    from pianist.music import Song
+
+#: A hand's plan for a song: what ``IKPlanner._plan`` sets (read only once made).
+_PLAN_ARRAYS = ("tx_plan", "busy", "skip", "free", "shift_to", "tx_path", "tx_servo")
+#: Plans by (goal frames, scene options, config): a new episode of the same environment
+#: reuses its plan (up to ~1 s for a minute of music) instead of making it again.
+_PLANS: dict[tuple[int, SceneOptions, PlannerConfig], tuple[Any, ...]] = {}
+_PLANS_KEPT = 8
+
+
+class IKPlanner(BaseController):
+    """Plays the song of a :class:`pianist.env.PianoEnv` from its goal frames and fingering.
+
+    Use like any controller: ``reset(env)``, then ``act(observation)`` each step. Needs every
+    note fingered and the ``tx`` forearm slide; works with the reduced or the full action
+    space and with one or two hands. Without the ``tz`` slide (the paper's scene) the wrist is
+    flexed so the fingers reach, but the thumb cannot press a white key at all: it declares
+    the slide in :meth:`env_options` (:data:`ENV_OPTIONS`).
+    """
+
+    def __init__(self, config: PlannerConfig | None = None) -> None:
+        self.config = config or PlannerConfig()
+
+    # ----------------------------------------------------------------------------- set-up
+
+    def env_options(self, song: Song | None = None) -> dict[str, Any]:
+        """The environment the planner plays in (:data:`ENV_OPTIONS`), whatever the song."""
+        return dict(ENV_OPTIONS)
+
+    def reset(self, env: gym.Env, seed: int | None = None) -> None:
+        handle = control_handle(env)
+        goal = handle.goal
+        if np.any(goal.keys & (goal.fingers < 0)):
+            raise ValueError(
+                "the planner needs a finger for every note; this song has unfingered notes"
+            )
+        self.handle = handle
+        self.model: mujoco.MjModel = handle.model
+        self.scratch = mujoco.MjData(self.model)
+        self.goal = goal
+        self.dt = handle.control_timestep_s
+        cfg, m = self.config, self.model
+        mujoco.mj_resetData(m, self.scratch)
+        mujoco.mj_kinematics(m, self.scratch)
+        # Press point and top height of every key, (88, 3) and (88,).
+        self.key_top_z = np.where(
+            C.BLACK_KEY_MASK,
+            C.WHITE_KEY_HEIGHT_M + C.BLACK_KEY_TOP_ABOVE_WHITE_M,
+            C.WHITE_KEY_HEIGHT_M,
+        )
+        self.key_point = self.scratch.site_xpos[handle.scene.key_sites].copy()
+        self.key_point[:, 0] = np.where(C.BLACK_KEY_MASK, cfg.black_press_x_m, cfg.white_press_x_m)
+        self.key_depth = np.where(
+            C.BLACK_KEY_MASK, cfg.black_press_depth_m, cfg.white_press_depth_m
+        )
+        self.key_qpos = handle.scene.key_qpos
+        self.key_threshold = (
+            np.where(C.BLACK_KEY_MASK, C.BLACK_KEY_MAX_ANGLE_RAD, C.WHITE_KEY_MAX_ANGLE_RAD)
+            - C.KEY_ACTIVATION_THRESHOLD_RAD
+        )
+        self.hands = [Hand(m, hand) for hand in handle.scene.hands]
+        _use_postures(m, self.scratch, self.hands, cfg, handle.scene.options)
+        key = (id(goal), handle.scene.options, cfg)
+        cached = _PLANS.get(key)
+        if cached is not None and cached[0]() is goal:
+            # The same song in the same scene (a new episode): the plan is the same.
+            self.plan_kind, self.fingers, hand_plans = cached[1:]
+            for hand, arrays in zip(self.hands, hand_plans, strict=True):
+                hand.__dict__.update(arrays)
+            return
+        if cfg.hand_planning == "best":
+            candidates = [("frame", False), ("piece", False), ("piece", True)]
+            playable = [self._plan(goal, kind, refinger) for kind, refinger in candidates]
+            enough = max(playable) - cfg.piece_plan_margin * goal.keys.sum()
+            self.plan_kind = candidates[next(i for i, n in enumerate(playable) if n >= enough)]
+        else:
+            self.plan_kind = (cfg.hand_planning, cfg.refinger and cfg.hand_planning == "piece")
+        self._plan(goal, *self.plan_kind)
+        if len(_PLANS) >= _PLANS_KEPT:
+            del _PLANS[next(iter(_PLANS))]
+        hand_plans = [{name: getattr(hand, name) for name in _PLAN_ARRAYS} for hand in self.hands]
+        _PLANS[key] = (weakref.ref(goal), self.plan_kind, self.fingers, hand_plans)
+
+    def _plan(self, goal, kind: str, refinger: bool) -> int:
+        """Plan the hands' positions, fingers and forearm paths (``kind``: "frame" by frame or
+        over the whole "piece"; ``refinger``: the piece plan chooses the fingers); returns the
+        key-frames the plan leaves playable."""
+        cfg = self.config
+        piece = kind == "piece"
+        # The finger (0-9) that presses each due key: the song's, or the plan's.
+        self.fingers = goal.fingers.copy()
+        if piece:
+            self._plan_piece(goal, refinger)
+        else:
+            for hand in self.hands:
+                hand.plan_forearm(goal, self.key_point, cfg.lazy_m, cfg.skip_out_of_reach)
+        if len(self.hands) == 2:
+            _keep_forearms_apart(self.hands[0], self.hands[1], cfg.forearm_separation_m)
+        for hand in self.hands:
+            hand.plan_commands(self.model, self.dt, cfg, multi_step=piece)
+        return sum(hand.playable_keyframes(self) for hand in self.hands)
+
+    def _plan_piece(self, goal, refinger: bool) -> None:
+        """The whole-piece plan of both hands (:mod:`pianist.control.hand_plan`).
+
+        The right hand is planned first. With ``share_keys`` (and the plan's fingering), keys
+        one hand cannot reach from its plan (an octave, a chord wider than the hand) are
+        offered to the other, which plans for its own keys and those, kept clear of the first
+        forearm; then the first is planned again the same way. A key both hands would play
+        stays with the hand the song gives it.
+        """
+        cfg = self.config
+        hands = sorted(self.hands, key=lambda h: h.side != "right")
+        plan = partial(
+            Hand.plan_piece,
+            goal=goal,
+            key_point=self.key_point,
+            dt=self.dt,
+            costs=cfg.hand_plan,
+            refinger=refinger,
+        )
+        plan(hands[0])
+        if len(hands) == 2:
+            first, second = hands
+            if refinger and cfg.share_keys:
+                plan(second, take=first.skip, extra_cost=first.clearance(second, cfg))
+                own_second = second.skip & second.own_keys(goal)
+                plan(first, take=own_second, extra_cost=second.clearance(first, cfg))
+                for a, b in ((first, second), (second, first)):
+                    both = (a.key_fingers >= 0) & (b.key_fingers >= 0)
+                    b_loses = both & a.own_keys(goal)
+                    b.key_fingers[b_loses] = -1
+            else:
+                plan(second)
+        for hand in self.hands:
+            mine = hand.key_fingers >= 0
+            self.fingers[mine] = hand.key_fingers[mine] + hand.finger_offset
+            hand.skip = goal.keys & ~(hand.key_fingers >= 0) & hand.own_keys(goal)
+
+    # ----------------------------------------------------------------------------- acting
+
+    def act(self, observation: object = None) -> np.ndarray:
+        cfg, handle, m, scratch = self.config, self.handle, self.model, self.scratch
+        T = self.goal.num_frames
+        t = min(handle.step_index, T - 1)  # an episode that ran to its end: hold the last frame
+        ctrl = np.array(handle.data.ctrl)
+        scratch.qpos[:] = handle.data.qpos
+        press_frame = min(t + cfg.press_lead_frames, T - 1)
+        hover_end = min(T, press_frame + 1 + round(cfg.hover_lead_s / self.dt))
+        for hand in self.hands:
+            hand.command_forearm(ctrl, handle.data, t, cfg)
+            hand.set_wrist(scratch, ctrl, cfg)
+            # The fingers are solved for where the moving forearm will be a little later:
+            # their servos lag behind their commands by about a control step.
+            scratch.qpos[hand.tx_qpos] += cfg.forearm_lead_s * handle.data.qvel[hand.tx_dof]
+        mujoco.mj_kinematics(m, scratch)
+        for hand in self.hands:
+            targets, active = hand.fingertip_targets(self, t, hover_end)
+            hand.solve(m, scratch, targets, active, cfg)
+            ctrl[hand.finger_actuators] = hand.finger_controls(scratch)
+        action = np.empty(m.nu + 1)
+        action[:-1] = handle.ctrl_to_action(ctrl)
+        action[-1] = 1.0 if self.goal.sustain[press_frame] else -1.0
+        return action.astype(np.float32)

@@ -1,0 +1,345 @@
+"""Where each forearm is along the keyboard at every frame, and how its slide gets there.
+
+Planned at reset (methods of :class:`ForearmPlan`; T frames, positions are the forearm
+``tx`` slide's, in m):
+
+- ``plan_forearm``, frame by frame with the song's fingering, or ``plan_piece``, over the
+  whole piece (:func:`pianist.control.hand_plan.plan_hand`; ``own_keys`` and ``clearance``
+  serve the sharing of keys between the hands): ``tx_plan`` (T,) the position wanted at each
+  frame, ``busy`` (T,) bool (the hand has notes), ``skip`` (T, 88) bool (its keys it leaves
+  out), and for the piece plan ``key_fingers`` (T, 88) int (its finger 0-4 per key, or -1);
+- ``_keep_forearms_apart``: the two hands' ``tx_plan`` shifted so the forearms never touch;
+- ``playable_keyframes``: how many key-frames a plan leaves playable (to choose a plan);
+- ``plan_commands``: the reference path ``tx_path`` (T + 2, 2) (m, m/s at the end of each
+  step), the shifts (``free`` (T,) bool: the fingers let go; ``shift_to`` (T,) int: the
+  frame moved to) and the slide's servo model ``tx_servo`` (:class:`_Servo`).
+
+Each step ``command_forearm`` writes the slides' commands (m) into ``ctrl``: ``tx`` along
+the path in closed loop, ``tz`` (when present) held at the playing height.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+import scipy.linalg
+
+from pianist.control.hand_plan import HandPlanCosts, free_frames, move_frames, plan_hand
+from pianist.control.planner.config import FINGERS_PER_HAND, PlannerConfig, PlannerState
+from pianist.sim import constants as C
+
+
+class _Servo:
+    """A position-servo slide as the linear system ``M q'' = kp (u - q) - c q'``, discretised
+    exactly over one control step (the command is held constant through the step)."""
+
+    def __init__(self, m, actuator: int, dof: int, dt: float) -> None:
+        kp = m.actuator_gainprm[actuator, 0]
+        c = -m.actuator_biasprm[actuator, 2] + m.dof_damping[dof]
+        mass = m.dof_M0[dof]
+        # Augmented matrix exponential: the transition (2, 2) and the command's effect (2,).
+        a = np.zeros((3, 3))
+        a[0, 1] = 1.0
+        a[1] = [-kp / mass, -c / mass, kp / mass]
+        e = scipy.linalg.expm(a * dt)
+        phi, gamma = e[:2, :2], e[:2, 2]
+        self.phi2 = phi @ phi
+        # Two steps' commands (u0, u1) -> state after them: phi gamma u0 + gamma u1.
+        self.inverse = np.linalg.inv(np.stack([phi @ gamma, gamma], axis=1))
+        self.low, self.high = m.actuator_ctrlrange[actuator]
+
+    def command(self, state: np.ndarray, target: np.ndarray) -> float:
+        """This step's command, shape (), to reach ``target`` (position m, velocity m/s) at the
+        end of the next step from ``state``: the first of the two commands that get there
+        exactly (re-solved every step from the measured state, so it corrects for contacts)."""
+        u0, _ = self.inverse @ (target - self.phi2 @ state)
+        return float(np.clip(u0, self.low, self.high))
+
+
+def _note_onsets(keys: np.ndarray) -> np.ndarray:
+    """(T, 88) int: the first frame of the note covering each due key (-1 where none)."""
+    onset = np.full(keys.shape, -1)
+    for t in range(keys.shape[0]):
+        started = keys[t] & ~(keys[t - 1] if t else np.zeros_like(keys[t]))
+        onset[t] = np.where(started, t, np.where(keys[t], onset[t - 1] if t else -1, -1))
+    return onset
+
+
+class ForearmPlan:
+    """A hand's forearm: its plan along the keyboard and its slides' commands."""
+
+    # Set by ``Hand.__init__``.
+    side: str
+    finger_offset: int
+    root_y: float
+    tx_qpos: int
+    tx_dof: int
+    tx_range: np.ndarray
+    tx_actuator: int
+    tz_actuator: int | None
+    tz_qpos: int | None
+    tz_range: np.ndarray | None
+    # Set by ``HandPostures.choose_lift_posture``.
+    tip_offset_y: np.ndarray
+    reach: np.ndarray
+    full_reach: np.ndarray
+    # Set here.
+    tx_plan: np.ndarray
+    busy: np.ndarray
+    skip: np.ndarray
+    key_fingers: np.ndarray
+    free: np.ndarray
+    shift_to: np.ndarray
+    tx_path: np.ndarray
+    tx_servo: _Servo
+
+    def own_keys(self, goal) -> np.ndarray:
+        """(T, 88) the due keys the song gives this hand."""
+        local = goal.fingers - self.finger_offset
+        return goal.keys & (local >= 0) & (local < FINGERS_PER_HAND)
+
+    def clearance(
+        self, other: ForearmPlan, cfg: PlannerConfig
+    ) -> Callable[[np.ndarray], np.ndarray]:
+        """Candidate slide positions of ``other`` (P,) -> (T, P) cost of coming closer than
+        ``forearm_separation_m`` to this hand's planned forearm (they would collide) while
+        this hand plays (when it does not, it makes way: ``_keep_forearms_apart``)."""
+        sign = 1.0 if self.side == "right" else -1.0  # this forearm's side of the other
+
+        def cost(grid: np.ndarray) -> np.ndarray:
+            gap = sign * ((self.tx_plan[:, None] + self.root_y) - (grid[None, :] + other.root_y))
+            close = (gap < cfg.forearm_separation_m) & self.busy[:, None]
+            return np.where(close, cfg.clearance_cost, 0.0)
+
+        return cost
+
+    def plan_piece(
+        self,
+        goal,
+        key_point: np.ndarray,
+        dt: float,
+        costs: HandPlanCosts,
+        refinger: bool,
+        take: np.ndarray | None = None,
+        extra_cost: Callable[[np.ndarray], np.ndarray] | None = None,
+    ) -> None:
+        """The forearm slide position at every frame from the whole-piece plan
+        (:func:`pianist.control.hand_plan.plan_hand`), with its ``busy``, ``skip`` and
+        ``key_fingers`` (T, 88), this hand's finger 0-4 of each due key (-1: none).
+
+        ``take``: (T, 88) further keys (the other hand's) to play if the plan can
+        (``refinger`` only); ``extra_cost``: see :func:`plan_hand`.
+        """
+        local = goal.fingers - self.finger_offset
+        local = np.where((local >= 0) & (local < FINGERS_PER_HAND), local, -1)
+        if take is not None:
+            local = np.where(take & (local < 0), 0, local)  # any finger: the plan chooses
+        plan = plan_hand(
+            goal.keys,
+            local,
+            key_point[:, 1],
+            C.BLACK_KEY_MASK,
+            self.full_reach,
+            self.reach,
+            self.tip_offset_y,
+            (float(self.tx_range[0]), float(self.tx_range[1])),
+            start=0.0,
+            dt=dt,
+            outer="top" if self.side == "right" else "bottom",
+            costs=costs,
+            refinger=refinger,
+            extra_cost=extra_cost,
+        )
+        self.tx_plan, self.busy, self.skip = plan.position, plan.busy, plan.skip
+        self.key_fingers = plan.fingers
+
+    def plan_forearm(
+        self,
+        goal,
+        key_point: np.ndarray,
+        lazy_m: float = 0.0,
+        skip_out_of_reach: bool = False,
+    ) -> None:
+        """Forearm slide position wanted at every frame, shape (T,).
+
+        The position that puts each assigned finger at its resting place over its key (the
+        mean over the hand's due keys), moved as little as needed to bring every one of those
+        keys within its finger's reach: a wide chord otherwise leaves the thumb pressing at
+        the edge of its reach, where it slips off the key. With ``lazy_m`` > 0 the hand
+        rather stays where it was while every finger still reaches from there (and it is at
+        most ``lazy_m`` from that position). With ``skip_out_of_reach``, the keys of a chord
+        no position covers are left out, as ``skip`` (T, 88) records (see ``PlannerConfig``).
+        """
+        T = goal.num_frames
+        wanted = np.full(T, np.nan)
+        # Keys of this hand it leaves out: a chord wider than the hand (an octave, say).
+        self.skip = np.zeros((T, goal.keys.shape[1]), dtype=bool)
+        onset = _note_onsets(goal.keys)
+        previous = np.nan
+        for t in range(T):
+            keys = np.flatnonzero(goal.keys[t])
+            fingers = goal.fingers[t, keys]
+            mine = (fingers >= self.finger_offset) & (fingers < self.finger_offset + 5)
+            if not mine.any():
+                continue
+            keys, local = keys[mine], fingers[mine] - self.finger_offset
+            y = key_point[keys, 1]
+            reach = self.reach[local, C.BLACK_KEY_MASK[keys].astype(int)]  # (n, 2)
+            low, high = np.max(y - reach[:, 1]), np.min(y - reach[:, 0])
+            centre = np.mean(y - self.tip_offset_y[local])
+            full = self.full_reach[local, C.BLACK_KEY_MASK[keys].astype(int)]
+            first, last = y - full[:, 1], y - full[:, 0]  # slide range each key allows
+            if skip_out_of_reach and np.max(first) > np.min(last) and len(set(onset[t, keys])) == 1:
+                # A chord struck together that no hand position covers: play the most of its
+                # keys that one position reaches, the outer voice (the bass in the left hand,
+                # the top in the right) among them, rather than none from halfway.
+                outer = np.argmax(y) if self.side == "right" else np.argmin(y)
+                best = max(
+                    np.concatenate([first, last]),
+                    key=lambda p: (
+                        np.sum((first <= p + 1e-9) & (p - 1e-9 <= last)),
+                        first[outer] <= p <= last[outer],
+                    ),
+                )
+                kept = (first <= best + 1e-9) & (best - 1e-9 <= last)
+                self.skip[t, keys[~kept]] = True
+                keys, local, y, reach = keys[kept], local[kept], y[kept], reach[kept]
+                low, high = np.max(y - reach[:, 1]), np.min(y - reach[:, 0])
+                centre = np.mean(y - self.tip_offset_y[local])
+            # Out of reach together: halfway between what the two worst-off fingers need.
+            wanted[t] = np.clip(centre, low, high) if low <= high else (low + high) / 2
+            if lazy_m > 0 and low <= high and np.isfinite(previous):
+                # Stay where the fingers still reach: every move costs frames.
+                if max(low, centre - lazy_m) <= previous <= min(high, centre + lazy_m):
+                    wanted[t] = previous
+            previous = wanted[t]
+        # Between notes, hold the next note's position (go there early); after the last, stay.
+        self.busy = ~np.isnan(wanted)
+        known = np.flatnonzero(self.busy)
+        if known.size == 0:
+            wanted[:] = 0.0
+        else:
+            nxt = np.minimum(np.searchsorted(known, np.arange(T)), known.size - 1)
+            fill = np.isnan(wanted)
+            wanted[fill] = wanted[known[nxt[fill]]]
+        self.tx_plan = np.clip(wanted, *self.tx_range)
+
+    def playable_keyframes(self, planner: PlannerState) -> int:
+        """Key-frames of this hand's plan that a finger can press: not skipped, not during a
+        shift, and within the finger's reach from the planned position."""
+        goal = planner.goal
+        frames, keys = np.nonzero(goal.keys & ~self.skip & ~self.free[:, None])
+        finger = planner.fingers[frames, keys] - self.finger_offset
+        mine = (finger >= 0) & (finger < FINGERS_PER_HAND)
+        frames, keys, finger = frames[mine], keys[mine], finger[mine]
+        lo, hi = self.full_reach[finger, C.BLACK_KEY_MASK[keys].astype(int)].T
+        relative = planner.key_point[keys, 1] - self.tx_plan[frames]
+        tolerance = planner.config.playable_tolerance_m
+        return int(np.sum((relative >= lo - tolerance) & (relative <= hi + tolerance)))
+
+    def plan_commands(self, m, dt: float, cfg: PlannerConfig, multi_step: bool) -> None:
+        """The forearm's reference path along the keyboard, ``tx_path`` (T + 2, 2): position
+        and velocity wanted at the end of every step.
+
+        With ``multi_step`` (the whole-piece plan), a jump takes the steps the slide needs
+        (:func:`pianist.control.hand_plan.move_frames`) on a minimum-jerk path, the fingers
+        lifted a step before it; otherwise every move takes ``forearm_move_s``.
+
+        The plan's steps become minimum-jerk moves of ``forearm_move_s`` that end
+        ``press_lead_frames`` before the note starts (``shift_lead_frames`` for a shift the
+        fingers let go for); ``command_forearm`` then steers the
+        slide's servo along that path in closed loop. Left alone, the critically damped
+        servo needs ~0.45 s to cover 90 % of a jump, which makes the hand late for every
+        shift (and for the first note, which the hands reach from their home position).
+        """
+        plan = self.tx_plan
+        T = len(plan)
+        n = max(1, round(cfg.forearm_move_s / dt))
+        # A pressed finger pins the hand to its key by friction: before a shift too large for
+        # the fingers to absorb, the hand lets go of its keys for the move's duration.
+        self.free = np.zeros(T, dtype=bool)
+        self.shift_to = np.zeros(T, dtype=int)  # during a move: the frame of the note it is for
+        # Moves end ``press_lead_frames`` before the note, so that fingers press a still hand;
+        # shifts ``shift_lead_frames`` before it, so that the keys before them are held longer.
+        lead = cfg.press_lead_frames
+        if not 0 <= cfg.shift_lead_frames <= lead:
+            raise ValueError("shift_lead_frames must be between 0 and press_lead_frames")
+        shifts = np.flatnonzero(np.abs(np.diff(plan)) > cfg.shift_threshold_m) + 1
+        delay = lead - cfg.shift_lead_frames
+        # Steps each shift takes: a long jump needs more than one (the slide's servo has a
+        # limited force); the whole-piece plan knows this and has paid for the frames.
+        if multi_step:
+            need = move_frames(plan[shifts] - plan[shifts - 1], dt)
+        else:
+            need = np.full(len(shifts), n)
+        lift_first = np.zeros(len(shifts), dtype=int)
+        if multi_step:
+            lift_first = free_frames(plan[shifts] - plan[shifts - 1], dt) - need
+        for k, steps, extra in zip(
+            shifts.tolist(), need.tolist(), lift_first.tolist(), strict=True
+        ):
+            window = slice(max(0, k - steps - extra - lead + delay), max(0, k - lead + delay))
+            self.free[window] = True
+            self.shift_to[window] = k
+        if delay:
+            # The path below ends every move ``lead`` frames early: hold the old position
+            # ``delay`` frames longer before each shift (later shifts first, so that a shift
+            # that follows another keeps its own start).
+            plan = plan.copy()
+            for k in shifts[::-1]:
+                plan[k : min(T, k + delay)] = self.tx_plan[k - 1]
+        s = (np.arange(n) + 0.5) / n
+        weights = s**2 * (1 - s) ** 2  # minimum-jerk velocity profile
+        weights /= weights.sum()
+        padded = np.concatenate([plan, np.full(n + 3 + lead, plan[-1])])
+        # y[t]: where the forearm should be at the end of step t (two steps past the end too).
+        y = np.array([weights @ padded[t + 1 + lead : t + 1 + lead + n] for t in range(T + 2)])
+        if multi_step:
+            # A jump that takes several steps follows a minimum-jerk path over them, arriving
+            # when a one-step move would (not starting before the previous shift has ended):
+            # its first step is small, so the fingers are off the keys before the hand flies.
+            previous = 0
+            for k, steps in zip(shifts.tolist(), need.tolist(), strict=True):
+                arrive = k + delay - 1 - lead  # the first step whose end is at the new place
+                begin = max(previous, arrive - steps + 1)
+                if arrive - begin >= 1:
+                    u = (np.arange(begin, arrive + 1) - begin + 1) / (arrive - begin + 1)
+                    start, end = y[begin - 1] if begin else y[0], y[arrive]
+                    y[begin : arrive + 1] = start + (end - start) * (
+                        10 * u**3 - 15 * u**4 + 6 * u**5
+                    )
+                previous = arrive + 1
+        ext = np.concatenate([[y[0]], y, [y[-1]]])
+        self.tx_path = np.stack([y, (ext[2:] - ext[:-2]) / (2 * dt)], axis=1)
+        self.tx_servo = _Servo(m, self.tx_actuator, self.tx_dof, dt)
+
+    def command_forearm(self, ctrl: np.ndarray, data, t: int, cfg: PlannerConfig) -> None:
+        # The fingers are solved for where the forearm actually is (see ``forearm_lead_s``),
+        # not for its plan: they then reach their keys even while it is still on its way.
+        t = min(t, len(self.tx_path) - 3)
+        state = np.array([data.qpos[self.tx_qpos], data.qvel[self.tx_dof]])
+        ctrl[self.tx_actuator] = self.tx_servo.command(state, self.tx_path[t + 1])
+        if self.tz_actuator is not None:
+            assert self.tz_qpos is not None and self.tz_range is not None  # set with tz_actuator
+            # The keys push the hand up (about a centimetre under a chord): pressing harder the
+            # further it has risen stiffens the slide's servo against them.
+            rise = data.qpos[self.tz_qpos] - cfg.hand_height_m
+            command = cfg.hand_height_m - cfg.height_feedback * rise
+            ctrl[self.tz_actuator] = np.clip(command, *self.tz_range)
+
+
+def _keep_forearms_apart(a: ForearmPlan, b: ForearmPlan, separation: float) -> None:
+    """Shift the forearm plans so the right forearm stays ``separation`` m right of the left.
+
+    A hand with nothing to play yields to the other; when both play, both give way equally.
+    """
+    right, left = (a, b) if a.side == "right" else (b, a)
+    y_right = right.tx_plan + right.root_y
+    y_left = left.tx_plan + left.root_y
+    short = np.maximum(separation - (y_right - y_left), 0.0)
+    right_share = np.where(
+        right.busy & ~left.busy, 0.0, np.where(left.busy & ~right.busy, 1.0, 0.5)
+    )
+    right.tx_plan = np.clip(right.tx_plan + short * right_share, *right.tx_range)
+    left.tx_plan = np.clip(left.tx_plan - short * (1 - right_share), *left.tx_range)

@@ -1,0 +1,60 @@
+"""One hand: its indices into the model and its state, and every stage's methods on it.
+
+:class:`Hand` gathers the stages' mixins (:class:`HandPostures`, :class:`ForearmPlan`,
+:class:`FingerTargets`, :class:`FingerIK`, one per module). Its ``__init__`` finds the hand's
+forearm slides, wrist and finger actuators and fingertip sites in the model, and starts the
+per-finger memory that the fingertip targets keep between steps.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+from pianist.control.planner.config import FINGER_PREFIXES, FINGERS_PER_HAND
+from pianist.control.planner.forearm import ForearmPlan
+from pianist.control.planner.ik import FingerIK
+from pianist.control.planner.postures import Finger, HandPostures, _actuated_qpos
+from pianist.control.planner.targets import FingerTargets
+from pianist.sim import constants as C
+
+
+class Hand(HandPostures, ForearmPlan, FingerTargets, FingerIK):
+    """One hand: its indices, posture samples, forearm plan and per-finger IK."""
+
+    def __init__(self, m, hand) -> None:
+        self.side = hand.side
+        self.finger_offset = 0 if hand.side == "right" else FINGERS_PER_HAND
+        self.sites = np.asarray(hand.fingertip_sites)
+        prefix = C.HAND_PREFIX[hand.side]
+        self.forearm_body = m.body(f"{prefix}forearm").id
+        self.tx_qpos = m.jnt_qposadr[m.joint(f"{prefix}forearm_tx").id]
+        self.tx_range = m.jnt_range[m.joint(f"{prefix}forearm_tx").id]
+        self.tx_actuator = m.actuator(f"{prefix}A_forearm_tx").id
+        self.tx_dof = m.jnt_dofadr[m.joint(f"{prefix}forearm_tx").id]
+        self.root_y = C.FOREARM_ROOT_POS_M[hand.side][1]
+        tz = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, f"{prefix}A_forearm_tz")
+        self.tz_actuator = tz if tz >= 0 else None
+        self.tz_qpos = m.jnt_qposadr[m.joint(f"{prefix}forearm_tz").id] if tz >= 0 else None
+        self.tz_range = m.actuator_ctrlrange[tz] if tz >= 0 else None
+
+        # Actuated joints of each finger (a joint, or a tendon over two joints) and the wrist.
+        self.fingers: list[Finger] = []
+        self.wrist: list[tuple[int, np.ndarray]] = []
+        for i, finger_prefix in enumerate(FINGER_PREFIXES):
+            acts = [
+                a
+                for a in hand.actuators
+                if m.actuator(a).name.startswith(f"{prefix}A_{finger_prefix}")
+            ]
+            self.fingers.append(Finger(m, acts, int(self.sites[i])))
+        for a in hand.actuators:
+            if m.actuator(a).name.startswith(f"{prefix}A_WR"):
+                self.wrist.append((int(a), _actuated_qpos(m, a)))
+        self.finger_actuators = np.concatenate([f.actuators for f in self.fingers])
+        self.jacp = np.zeros((3, m.nv))
+        self.pressing = np.zeros(FINGERS_PER_HAND, dtype=bool)
+        self.free = np.zeros(0, dtype=bool)
+        self.stuck = np.zeros(FINGERS_PER_HAND, dtype=int)
+        self.last_tips = np.zeros((FINGERS_PER_HAND, 3))
+        self.last_key = np.full(FINGERS_PER_HAND, -1)  # key each finger pressed last, or -1

@@ -1,0 +1,257 @@
+"""Each finger's actuated joints, and the sampled postures the IK starts from.
+
+At reset every finger's joints are sampled uniformly within their limits
+(``PlannerConfig.samples`` postures, always with generator seed 0) with the forearm at its
+playing height and the wrist at its pose, and each sample's fingertip is computed relative to
+the forearm body. The samples are made once per scene and config (:data:`_POSTURES`) and are
+read only. From them each hand (:class:`HandPostures`) takes
+
+- every finger's lifted posture ``Finger.lift`` (dof,) rad: the sample whose fingertip is
+  nearest a point above its resting place, ``lift_height_m`` clear of the keys;
+- ``rest_tips`` and ``lift_tips`` (5, 3) m, fingertips relative to the forearm body;
+- ``tip_offset_y`` (5,) m: the forearm slide that puts finger f over a key at y is
+  ``y - tip_offset_y[f]``;
+- ``reach`` and ``full_reach`` (5, 2, 2) m: per finger, for a white (0) and a black (1) key,
+  the lowest and highest key y minus forearm slide from which the finger presses the key
+  (``reach`` shrunk by ``reach_margin``).
+
+Inputs: the MuJoCo model, a scratch ``MjData``, the hands' indices, the config.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import mujoco
+import numpy as np
+import scipy.spatial
+
+from pianist.control.planner.config import FINGERS_PER_HAND, PlannerConfig
+from pianist.sim import constants as C
+from pianist.sim.scene import SceneOptions
+
+
+class Finger:
+    """The actuated joints of one finger: actuator ids, limits, how to set and differentiate."""
+
+    lift: np.ndarray
+    """The lifted posture (dof,), chosen by :meth:`HandPostures.choose_lift_posture`."""
+
+    def __init__(self, m, actuators: list[int], site: int) -> None:
+        self.actuators = np.asarray(actuators, dtype=int)
+        self.site = site
+        self.dof = len(actuators)
+        self.qpos = [_actuated_qpos(m, a) for a in actuators]
+        self.dofs = [m.jnt_dofadr[_actuated_joints(m, a)] for a in actuators]
+        self.share = np.array([1.0 / len(q) for q in self.qpos])  # tendon: split evenly
+        self.low, self.high = m.actuator_ctrlrange[self.actuators].T
+        self.names = [m.actuator(a).name for a in actuators]
+        self.angles = np.zeros(self.dof)
+        # Flat index arrays (the IK calls these every iteration): joint j of the finger is
+        # driven by actuator owner[j] with a share of its command.
+        owner = np.repeat(np.arange(self.dof), [len(q) for q in self.qpos])
+        self._qpos, self._owner = np.concatenate(self.qpos), owner
+        self._share = self.share[owner]
+        self._dofs = np.concatenate(self.dofs)
+        self._mix = np.zeros((len(owner), self.dof))  # joint velocities -> actuator space
+        self._mix[np.arange(len(owner)), owner] = self._share
+
+    def set(self, data, angles: np.ndarray) -> None:
+        data.qpos[self._qpos] = angles[self._owner] * self._share
+
+    def jacobian(self, jacp: np.ndarray) -> np.ndarray:
+        """(3, dof) fingertip Jacobian in actuator space from the full (3, nv) one."""
+        return jacp[:, self._dofs] @ self._mix
+
+    def index_samples(
+        self, samples: np.ndarray, tips: np.ndarray, tree: scipy.spatial.cKDTree
+    ) -> None:
+        """Keep the sampled postures (S, dof), their fingertips (S, 3) in the forearm frame and
+        a k-d tree over the fingertips (all shared between planners: read only)."""
+        self.samples, self.sample_tips, self._tree = samples, tips, tree
+
+    def nearest(self, target: np.ndarray) -> int:
+        """Index of the sampled posture whose fingertip is closest to ``target`` (forearm frame)."""
+        return int(self._tree.query(target)[1])
+
+
+def _actuated_joints(m, actuator: int) -> np.ndarray:
+    if m.actuator_trntype[actuator] == mujoco.mjtTrn.mjTRN_TENDON:
+        tendon = m.actuator_trnid[actuator, 0]
+        start, count = m.tendon_adr[tendon], m.tendon_num[tendon]
+        return m.wrap_objid[start : start + count]
+    return np.array([m.actuator_trnid[actuator, 0]])
+
+
+def _actuated_qpos(m, actuator: int) -> np.ndarray:
+    return m.jnt_qposadr[_actuated_joints(m, actuator)]
+
+
+def _rest_angles(m, finger: Finger) -> np.ndarray:
+    """A relaxed playing posture: knuckles bent a little, fingertips pointing down."""
+    angles = np.zeros(finger.dof)
+    for i, name in enumerate(finger.names):
+        if name.endswith("J3") and "TH" not in name:
+            angles[i] = 0.6
+        elif name.endswith("J0"):
+            angles[i] = 1.0
+    return np.clip(angles, finger.low, finger.high)
+
+
+class HandPostures:
+    """A hand's postures: its forearm height and wrist pose, lifted posture and reach."""
+
+    # Set by ``Hand.__init__``.
+    side: str
+    sites: np.ndarray
+    forearm_body: int
+    tx_qpos: int
+    tz_qpos: int | None
+    fingers: list[Finger]
+    wrist: list[tuple[int, np.ndarray]]
+    # Set here.
+    rest_tips: np.ndarray
+    lift_tips: np.ndarray
+    tip_offset_y: np.ndarray
+    reach: np.ndarray
+    full_reach: np.ndarray
+
+    def choose_lift_posture(self, m, data, cfg: PlannerConfig) -> None:
+        """The lifted posture of each finger and the forearm offsets, from the samples."""
+        # The lifted posture: the sample nearest the rest posture's fingertip, lifted clear.
+        mujoco.mj_resetData(m, data)
+        self.lower(data, cfg)
+        self.set_wrist(data, None, cfg)
+        rest = [_rest_angles(m, f) for f in self.fingers]
+        for finger, angles in zip(self.fingers, rest, strict=True):
+            finger.set(data, angles)
+        mujoco.mj_kinematics(m, data)
+        origin = data.xpos[self.forearm_body].copy()
+        lift_z = C.WHITE_KEY_HEIGHT_M + cfg.lift_height_m + C.FINGERTIP_CAPSULE_RADIUS_M
+        self.rest_tips = data.site_xpos[self.sites] - origin
+        self.lift_tips = self.rest_tips.copy()
+        self.lift_tips[:, 2] = lift_z - origin[2]
+        # Thumb: under the side of the palm, a little more than a key from the index finger.
+        side = 1.0 if self.side == "right" else -1.0
+        self.lift_tips[0, 1] = self.rest_tips[1, 1] - side * cfg.thumb_offset_m
+        for f, finger in enumerate(self.fingers):
+            finger.lift = finger.samples[finger.nearest(self.lift_tips[f])]
+        # Forearm slide that puts finger f over a key at y: key y - tip_offset_y[f].
+        self.tip_offset_y = self.lift_tips[:, 1] + origin[1] - data.qpos[self.tx_qpos]
+        self.reach = self._reach(origin, data.qpos[self.tx_qpos], cfg.reach_margin, cfg)
+        self.full_reach = self._reach(origin, data.qpos[self.tx_qpos], 0.0, cfg)
+
+    def _reach(
+        self, origin: np.ndarray, slide: float, margin: float, cfg: PlannerConfig
+    ) -> np.ndarray:
+        """(5, 2, 2): per finger, for a white (0) and a black (1) key, the lowest and highest
+        key y minus forearm slide at which the finger can press the key.
+
+        From the sampled postures whose fingertip is at the key's press point (x) and below
+        its top: the range of their y, shrunk by ``reach_margin`` of its width at each end.
+        A finger that never gets there (the thumb on a black key) gets its resting offset.
+        """
+        radius = C.FINGERTIP_CAPSULE_RADIUS_M
+        reach = np.repeat(self.tip_offset_y[:, None, None], 2, axis=1).repeat(2, axis=2)
+        for f, finger in enumerate(self.fingers):
+            tips = finger.sample_tips + origin
+            for black in (0, 1):
+                if black:
+                    x = cfg.black_press_x_m
+                    top = C.WHITE_KEY_HEIGHT_M + C.BLACK_KEY_TOP_ABOVE_WHITE_M
+                else:
+                    x = cfg.thumb_white_press_x_m if f == 0 else cfg.white_press_x_m
+                    top = C.WHITE_KEY_HEIGHT_M
+                ok = (np.abs(tips[:, 0] - x) < cfg.reach_x_tolerance_m) & (
+                    tips[:, 2] < top + radius - cfg.reach_depth_m
+                )
+                if ok.sum() >= 10:
+                    lo, hi = np.percentile(tips[ok, 1] - slide, [1, 99])
+                    shrink = margin * (hi - lo)
+                    reach[f, black] = lo + shrink, hi - shrink
+        return reach
+
+    def lower(self, data, cfg: PlannerConfig) -> None:
+        """Put the forearm at its playing height in ``data`` (when it has a height slide)."""
+        if self.tz_qpos is not None:
+            data.qpos[self.tz_qpos] = cfg.hand_height_m
+
+    def set_wrist(self, data, ctrl: np.ndarray | None, cfg: PlannerConfig) -> None:
+        pose = cfg.wrist_pose if self.tz_qpos is not None else cfg.wrist_pose_without_tz
+        for (actuator, qpos), angle, gain in zip(
+            self.wrist, pose, cfg.wrist_feedback, strict=False
+        ):
+            off = float(np.mean(data.qpos[qpos])) - angle
+            data.qpos[qpos] = angle  # the fingers are solved for the wrist at its pose
+            if ctrl is not None:
+                ctrl[actuator] = angle - gain * off  # a stiffer servo against the swing
+
+
+#: Posture samples of every finger, (samples (S, dof), fingertips (S, 3)) per finger, keyed by
+#: the scene's options (the model is built from them deterministically) and the planner's
+#: config: sampling takes ~0.15 s, most of a short episode's reset, and is the same each time.
+_Postures = list[tuple[np.ndarray, np.ndarray, scipy.spatial.cKDTree]]
+_POSTURES: dict[tuple[SceneOptions, PlannerConfig], _Postures] = {}
+_POSTURES_KEPT = 8  # scenes x configs kept per process (~2 MB each)
+
+
+def _use_postures(
+    m, data, hands: Sequence[HandPostures], cfg: PlannerConfig, scene_options: SceneOptions
+) -> None:
+    """Give every finger its posture samples (sampled once per scene and config, see
+    :data:`_POSTURES`), then choose each hand's lifted posture."""
+    key = (scene_options, cfg)
+    samples = _POSTURES.get(key)
+    if samples is None:
+        # The samples do not depend on the episode: always the same generator seed.
+        samples = _sample_postures(m, data, hands, cfg, np.random.default_rng(0))
+        if len(_POSTURES) >= _POSTURES_KEPT:
+            del _POSTURES[next(iter(_POSTURES))]
+        _POSTURES[key] = samples
+    fingers = [finger for hand in hands for finger in hand.fingers]
+    for finger, (angles, tips, tree) in zip(fingers, samples, strict=True):
+        finger.index_samples(angles, tips, tree)
+    for hand in hands:
+        hand.choose_lift_posture(m, data, cfg)
+
+
+def _sample_postures(
+    m, data, hands: Sequence[HandPostures], cfg: PlannerConfig, rng: np.random.Generator
+) -> _Postures:
+    """Fingertip positions relative to the forearm for random postures of every finger.
+
+    Fingers (and hands) share no joints, so one kinematics pass samples all of them at once;
+    the joint positions of every sample are laid out in one array first so that the loop
+    only copies a row and runs ``mj_kinematics``.
+
+    Returns:
+        Per finger, right hand then left, thumb..little: postures (S, dof) in rad, fingertips
+        (S, 3) in m relative to the forearm body, and a k-d tree over the fingertips; the
+        arrays are read only.
+    """
+    mujoco.mj_resetData(m, data)
+    for hand in hands:
+        hand.lower(data, cfg)
+        hand.set_wrist(data, None, cfg)
+    batch = np.tile(data.qpos, (cfg.samples, 1))
+    postures = []
+    for hand in hands:
+        for finger in hand.fingers:
+            angles = rng.uniform(finger.low, finger.high, (cfg.samples, finger.dof))
+            for i, (qpos, share) in enumerate(zip(finger.qpos, finger.share, strict=True)):
+                batch[:, qpos] = angles[:, i : i + 1] * share
+            postures.append(angles)
+    sites = np.concatenate([hand.sites for hand in hands])
+    origins = np.repeat([hand.forearm_body for hand in hands], FINGERS_PER_HAND)
+    tips = np.empty((cfg.samples, len(sites), 3))
+    for s in range(cfg.samples):
+        data.qpos[:] = batch[s]
+        mujoco.mj_kinematics(m, data)
+        tips[s] = data.site_xpos[sites] - data.xpos[origins]
+    out = []
+    for i, angles in enumerate(postures):
+        finger_tips = tips[:, i].copy()  # not a view of this call's scratch array
+        angles.setflags(write=False)
+        finger_tips.setflags(write=False)
+        out.append((angles, finger_tips, scipy.spatial.cKDTree(finger_tips)))
+    return out

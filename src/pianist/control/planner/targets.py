@@ -1,0 +1,145 @@
+"""Each step, every fingertip's target: the per-finger press, hover and lift decisions.
+
+Inputs: the planner's episode data (:class:`PlannerState`: goal frames and fingering, the
+keys' press points (88, 3) m, tops (88,) m and press depths (88,) m, the simulator state),
+the hand's plan (``free``, ``shift_to``, ``skip`` from :mod:`forearm`), its lifted fingertips
+``lift_tips`` (5, 3) m (from :mod:`postures`), and its per-finger memory (``pressing``,
+``last_key``, ``stuck``, ``last_tips``), which ``fingertip_targets`` updates.
+
+Output: (5, 3) fingertip targets in m relative to the forearm body, and (5,) bool: which
+fingers have a target (the IK starts the others from their lifted posture).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pianist.control.planner.config import FINGERS_PER_HAND, PlannerState
+from pianist.sim import constants as C
+
+
+class FingerTargets:
+    """A hand's fingertip targets, and what the fingers remember between steps."""
+
+    # Set by ``Hand.__init__``.
+    sites: np.ndarray
+    forearm_body: int
+    finger_offset: int
+    # Set by ``HandPostures.choose_lift_posture`` and the forearm plan.
+    lift_tips: np.ndarray
+    free: np.ndarray
+    shift_to: np.ndarray
+    skip: np.ndarray
+    # Per-finger memory, (5,), kept here between steps.
+    pressing: np.ndarray
+    stuck: np.ndarray
+    last_tips: np.ndarray
+    last_key: np.ndarray
+
+    def fingertip_targets(
+        self, planner: PlannerState, now: int, hover_end: int
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(5, 3) fingertip targets relative to the forearm, and which fingers have one.
+
+        Keys scored at the end of this step (frame ``now``) are held down to its end; keys
+        due at the next frame are pressed already (the servos lag about a frame), except a key
+        that is still down and must sound again: it is let up for this step first. Fingers due
+        later hover over their keys; the rest take their lifted posture.
+        """
+        cfg, goal = planner.config, planner.goal
+        radius = C.FINGERTIP_CAPSULE_RADIUS_M
+        origin = planner.scratch.xpos[self.forearm_body]
+        real_tips = planner.handle.data.site_xpos[self.sites]
+        targets = self.lift_tips + origin
+        active = np.zeros(FINGERS_PER_HAND, dtype=bool)
+        self.pressing = np.zeros(FINGERS_PER_HAND, dtype=bool)
+        if self.free[now]:
+            self.last_key[:] = -1
+        if self.free[now] and cfg.hover_in_shift:
+            # The hand is moving: the fingers of the note it moves for travel with it just
+            # above their keys, the others stay lifted.
+            self._hover_over(planner, self.shift_to[now], targets, active)
+            # A finger still on the keys with far to go comes up first (``jump_lift_m``).
+            low = real_tips[:, 2] < C.WHITE_KEY_HEIGHT_M + radius + cfg.jump_low_m
+            far = active & low & (np.abs(targets[:, 1] - real_tips[:, 1]) > cfg.jump_lift_m)
+            active[far] = False
+            targets[far] = self.lift_tips[far] + origin
+            return targets - origin, active
+        lead = min(now + cfg.press_lead_frames, goal.num_frames - 1)
+        key_down = planner.handle.data.qpos[planner.key_qpos] >= planner.key_threshold
+        hovering = np.zeros(FINGERS_PER_HAND, dtype=bool)
+        pressed_key = np.full(FINGERS_PER_HAND, -1)
+        for frame in (now, lead):
+            for key in np.flatnonzero(goal.keys[frame] & ~self.skip[frame]):
+                finger = planner.fingers[frame, key] - self.finger_offset
+                if not 0 <= finger < FINGERS_PER_HAND or active[finger]:
+                    continue
+                point = self._press_point(planner, int(key), finger)
+                top = planner.key_top_z[key] + radius
+                targets[finger] = point
+                active[finger] = True
+                if frame != now and key_down[key]:
+                    targets[finger, 2] = top + cfg.release_height_m  # re-strike: up first
+                    continue
+                if self.free[frame]:
+                    # The hand is moving: its fingers stay clear, or they catch on keys.
+                    targets[finger] = self.lift_tips[finger] + origin
+                    continue
+                black = C.BLACK_KEY_MASK[key]
+                tolerance = cfg.black_align_tolerance_m if black else cfg.align_tolerance_m
+                # Across the keys is what matters; along a key a few mm either way still press,
+                # but a finger too far back over a white key would land on a black one.
+                miss = abs(real_tips[finger, 1] - point[1])
+                if finger and not black and real_tips[finger, 0] < point[0] - cfg.align_along_m:
+                    miss = np.inf
+                down = real_tips[finger, 2] < top
+                # A pressing finger keeps pressing while it stays roughly on its key; one that
+                # slid off (beside a black key, say) comes up to try again.
+                # A finger that hovers off its key and no longer moves cannot get closer at
+                # that height (the thumb under the palm, say): it goes down from where it is.
+                stuck = self.stuck[finger] >= cfg.stuck_frames and miss <= cfg.stuck_reach_m
+                if (
+                    miss <= tolerance
+                    or (down and miss <= cfg.keep_pressing_ratio * tolerance)
+                    or stuck
+                ):
+                    extra = cfg.thumb_extra_depth_m if finger == 0 else 0.0
+                    targets[finger, 2] = top - planner.key_depth[key] - extra
+                    self.pressing[finger] = True
+                    pressed_key[finger] = key
+                else:
+                    transfer = self.last_key[finger] >= 0 and self.last_key[finger] != key
+                    height = cfg.transfer_height_m if transfer else cfg.hover_height_m
+                    targets[finger, 2] = top + height
+                    hovering[finger] = True
+        # A finger keeps its last key while it presses or hovers on its way to the next one.
+        self.last_key = np.where(self.pressing, pressed_key, np.where(hovering, self.last_key, -1))
+        # Count the steps each hovering finger has stood still.
+        still = np.linalg.norm(real_tips - self.last_tips, axis=1) < cfg.still_m
+        self.stuck = np.where(hovering & still, self.stuck + 1, 0)
+        self.last_tips = real_tips.copy()
+        for t in range(lead + 1, hover_end if not self.free[now] else lead + 1):
+            if self.free[t] and cfg.hover_stops_at_shift:
+                break  # keys past a shift are out of reach from here
+            self._hover_over(planner, t, targets, active)
+        return targets - origin, active
+
+    def _hover_over(
+        self, planner: PlannerState, frame: int, targets: np.ndarray, active: np.ndarray
+    ) -> None:
+        """Send each finger without a target yet to hover over its key due at ``frame``
+        (world frame, in place)."""
+        goal = planner.goal
+        height = C.FINGERTIP_CAPSULE_RADIUS_M + planner.config.hover_height_m
+        for key in np.flatnonzero(goal.keys[frame] & ~self.skip[frame]):
+            finger = planner.fingers[frame, key] - self.finger_offset
+            if 0 <= finger < FINGERS_PER_HAND and not active[finger]:
+                targets[finger] = self._press_point(planner, int(key), finger)
+                targets[finger, 2] = planner.key_top_z[key] + height
+                active[finger] = True
+
+    def _press_point(self, planner: PlannerState, key: int, finger: int) -> np.ndarray:
+        point = planner.key_point[key].copy()
+        if finger == 0 and not C.BLACK_KEY_MASK[key]:
+            point[0] = planner.config.thumb_white_press_x_m
+        return point
