@@ -112,7 +112,7 @@ def speed(presets: list[str], song: str, repeats: int) -> list[dict]:
     return rows
 
 
-PLANNER_SNAPSHOT = "planner_snapshot.py"
+PLANNER_SNAPSHOT = "planner_snapshot"  # a copy of the planner package (older runs: a .py)
 
 
 def use_planner(run: str | Path | None) -> None:
@@ -128,11 +128,18 @@ def use_planner(run: str | Path | None) -> None:
     import pianist.control
 
     name = "pianist.control.planner"
+    for loaded in [m for m in sys.modules if m == name or m.startswith(name + ".")]:
+        sys.modules.pop(loaded)
     if run is None:
-        sys.modules.pop(name, None)
         module = importlib.import_module(name)
     else:
-        spec = importlib.util.spec_from_file_location(name, Path(run) / PLANNER_SNAPSHOT)
+        folder = Path(run) / PLANNER_SNAPSHOT
+        if folder.is_dir():  # the package: its modules load from the copy too
+            spec = importlib.util.spec_from_file_location(
+                name, folder / "__init__.py", submodule_search_locations=[str(folder)]
+            )
+        else:  # a run snapshotted when the planner was one module
+            spec = importlib.util.spec_from_file_location(name, folder.with_suffix(".py"))
         module = importlib.util.module_from_spec(spec)
         sys.modules[name] = module
         spec.loader.exec_module(module)
@@ -142,10 +149,13 @@ def use_planner(run: str | Path | None) -> None:
 def snapshot_planner(run: str | Path) -> None:
     """Copy the planner's current source into ``run`` and use that copy from now on."""
     import importlib.util
+    import shutil
 
-    source = Path(importlib.util.find_spec("pianist.control.planner").origin).read_text()
+    package = Path(importlib.util.find_spec("pianist.control.planner").origin).parent
     Path(run).mkdir(parents=True, exist_ok=True)
-    (Path(run) / PLANNER_SNAPSHOT).write_text(source)
+    target = Path(run) / PLANNER_SNAPSHOT
+    shutil.rmtree(target, ignore_errors=True)
+    shutil.copytree(package, target, ignore=shutil.ignore_patterns("__pycache__"))
     use_planner(run)
 
 
@@ -224,7 +234,8 @@ def report(run_dirs: list[str], marks_min: list[float], noise: float, episodes: 
             baseline = Path(run) / "planner.json"
             if baseline.exists():
                 row["planner_f1_at_start"] = json.loads(baseline.read_text())["planner_f1"]
-            snapshot = (Path(run) / PLANNER_SNAPSHOT).exists()
+            kept = Path(run) / PLANNER_SNAPSHOT
+            snapshot = kept.exists() or kept.with_suffix(".py").exists()
             use_planner(run if snapshot else None)
             row["planner_snapshot"] = snapshot
             row["planner_f1"] = planner_f1(config)  # the run's planner, measured again
