@@ -321,6 +321,21 @@ def test_only_a_white_key_is_let_go_by_a_finger_too_far_back_along_it(key, finge
     assert hand.pressing[finger] == presses
 
 
+@pytest.mark.parametrize(("back_m", "presses"), [(0.005, True), (0.03, False)])
+def test_a_finger_in_front_of_a_black_key_does_not_press_it(back_m, presses):
+    # D major scale, frame 65: the ring finger holds C#5, its tip 1.6 cm behind the press
+    # point. With the press point moved 3 cm back into the keyboard, the tip is 1.4 cm in
+    # front of it, over the white key before C#5 (pressing there, chorales' inner voices
+    # stood on the white key for whole notes): it hovers on. Moved 5 mm, it still presses.
+    key, finger, frame = 73 - 21, 3, 65
+    env, planner, _ = _step_planner("d-major-scale-right", frame)
+    hand = planner.hands[0]
+    assert hand.pressing[finger]
+    planner.key_point[key, 0] -= back_m
+    hand.fingertip_targets(planner, frame, frame + 5)
+    assert hand.pressing[finger] == presses
+
+
 def test_every_black_key_of_the_d_major_scale_sounds_on_time():
     # The black keys (F#, C#) used to sound a frame late: with the hand still settling from a
     # move, the finger was more than the old black-key tolerance (4.5 mm) off and hovered.

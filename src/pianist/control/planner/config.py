@@ -129,6 +129,11 @@ class PlannerConfig:
     """How far behind the press point (x) a finger other than the thumb may be and press a
     white key (further back it would land on a black key). Along a black key there is no
     such limit: a finger that slid back on it still presses it."""
+    black_front_m: float = 0.01
+    """How far in front of a black key's press point (x, towards the player) a finger may be
+    and press it: further forward it is over the white key before it, where it would press
+    that key or stop against the black key's front; it hovers on until it is over the black
+    key."""
     keep_pressing_ratio: float = 1.3
     """A pressing finger keeps pressing until it is this many tolerances off its key."""
     stuck_frames: int = 2

@@ -92,6 +92,8 @@ class FingerTargets:
                 miss = abs(real_tips[finger, 1] - point[1])
                 if finger and not black and real_tips[finger, 0] < point[0] - cfg.align_along_m:
                     miss = np.inf
+                if black and real_tips[finger, 0] > point[0] + cfg.black_front_m:
+                    miss = np.inf  # still over the white key in front
                 down = real_tips[finger, 2] < top
                 # A pressing finger keeps pressing while it stays roughly on its key; one that
                 # slid off (beside a black key, say) comes up to try again.
