@@ -528,3 +528,23 @@ def test_fingering_term_uses_the_labelled_fingertips(hands: str) -> None:
         expected = fingering_reward(fresh.site_xpos[tips], fresh.site_xpos[targets])
         assert info["reward_terms"]["fingering"] == pytest.approx(expected, rel=1e-9)
         assert 0 < expected < 1
+
+
+@pytest.mark.parametrize("wake", [True, False])
+def test_a_key_asleep_while_held_rises_when_the_finger_leaves(wake, monkeypatch):
+    # Fast preset (sleeping islands), Schoenberg op. 19 no. 2 with the planner: F#3 (key 33),
+    # held down by a finger until frame ~351, fell asleep past its stop and, its spring not
+    # evaluated while it slept, sounded for the next 18 s; woken before every step, it rises.
+    from pianist.control.planner import IKPlanner
+    from pianist.eval.session import make_env
+
+    planner = IKPlanner()
+    env = make_env("schoenberg-op19-no2", planner, physics="fast")
+    if not wake:
+        monkeypatch.setattr(env.unwrapped, "_wake_pressed_keys", lambda: None)
+    observation, _ = env.reset(seed=0)
+    planner.reset(env, seed=0)
+    for _ in range(400):
+        observation, _, _, _, info = env.step(planner.act(observation))
+    assert not env.unwrapped.goal.keys[380:400, 33].any()
+    assert bool(info["active_keys"][33]) is not wake

@@ -58,6 +58,10 @@ _INSTABILITY_WARNINGS = tuple(
     )
 )
 FORWARD_SIDES = ("right", "left")
+#: A key this far below its upper stop is not at rest (it rests at ~0: its spring preloads it).
+KEY_REST_TOLERANCE_RAD = np.deg2rad(0.05)
+#: Upward velocity written to a sleeping key to wake it.
+WAKE_VELOCITY_RAD_S = 1e-3
 
 
 class SimulationUnstableError(RuntimeError):
@@ -147,6 +151,12 @@ class PianoEnv(gym.Env):
             self._key_slice = keys
         self._key_max = scene.key_max_angle_rad
         self._key_threshold = self._key_max - C.KEY_ACTIVATION_THRESHOLD_RAD
+        # Sleeping islands (the fast preset): a key can fall asleep held down by a finger and,
+        # its spring not evaluated while it sleeps, stay down after the finger has left (it
+        # sounded for 18 s in a piece). Such keys are woken before every step.
+        self._sleep = bool(model.opt.enableflags & int(mujoco.mjtEnableBit.mjENBL_SLEEP))
+        key_joints = [int(np.flatnonzero(model.jnt_qposadr == q)[0]) for q in keys]
+        self._key_trees = model.body_treeid[model.jnt_bodyid[key_joints]]
         self._ctrl_low = model.actuator_ctrlrange[:, 0].copy()
         self._ctrl_half = (model.actuator_ctrlrange[:, 1] - model.actuator_ctrlrange[:, 0]) / 2
         # Fingertip site of each of the 10 fingers, -1 when that hand is absent.
@@ -260,6 +270,7 @@ class PianoEnv(gym.Env):
         self._sustain = False
         self._pending_events = EMPTY_EVENTS
         self._key_state = self.key_state()
+        self._key_qpos_after_step = self.data.qpos[self._key_slice].copy()
         self._warnings_seen = self._instability_warnings()
         info = {"step": 0, "active_keys": self._active.copy(), "sustain": False}
         return self._observation(), info
@@ -318,6 +329,26 @@ class PianoEnv(gym.Env):
             self._pending_events = sustain_event(self.data.time, sustain)
         self._sustain = sustain
         self.data.userdata[0] = float(sustain)
+        if self._sleep:
+            self._wake_pressed_keys()
+
+    def _wake_pressed_keys(self) -> None:
+        """Wake every sleeping key that is not resting on its upper stop (see _setup_indices).
+
+        A sleeping tree wakes when its velocity is written; the upward velocity given is far
+        below what a released key reaches in a substep.
+        """
+        data = self.data
+        asleep = data.tree_asleep[self._key_trees] >= 0
+        if not asleep.any():
+            return
+        qpos = data.qpos[self._key_slice]
+        down = qpos > KEY_REST_TOLERANCE_RAD
+        # Only keys left as the last step ended: a key moved by hand since wakes by itself.
+        untouched = (qpos == self._key_qpos_after_step) & (data.qvel[self.scene.key_dof] == 0.0)
+        wake = asleep & down & untouched
+        if wake.any():
+            data.qvel[self.scene.key_dof[wake]] = -WAKE_VELOCITY_RAD_S
 
     def finish_step(self) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
         """Last part of :meth:`step`, once ``data`` holds the state a control step later."""
@@ -340,6 +371,7 @@ class PianoEnv(gym.Env):
 
         t = self._t
         self._key_state = self.key_state()
+        self._key_qpos_after_step = self.data.qpos[self._key_slice].copy()
         terms = self._reward_terms(t)
         reward = sum(w * terms[name] for name, w in self._weights)
         due = self.goal.keys[t]
