@@ -93,7 +93,13 @@ def test_after_a_lead_in_the_song_steps_are_also_scored_alone():
     assert metrics["song_f1"] == pytest.approx((1 + 0) / 2)
     assert metrics["song_precision"] == 1.0 and metrics["song_recall"] == 0.5
     assert metrics["lead_in_steps"] == 2
+    # A song that itself begins with a rest is scored from its first note the same way.
     episode.lead_in_steps = 0
+    metrics = episode.metrics()
+    assert metrics["song_f1"] == pytest.approx((1 + 0) / 2) and "lead_in_steps" not in metrics
+    assert metrics["silent_start_steps"] == 2
+    # A song with a key due in its first step has no song-only metrics.
+    episode.goal_keys[0, 5] = True
     assert "song_f1" not in episode.metrics()
 
 

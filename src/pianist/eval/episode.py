@@ -56,9 +56,15 @@ class Episode:
         """precision, recall, f1, sustain_precision/recall/f1 (facts section 5), plus steps,
         seconds (simulated) and return.
 
-        After a lead-in (``lead_in_steps`` > 0), whose silent steps count like any other as in
-        the original, also song_precision, song_recall and song_f1: the same over the song's
-        own steps, which a lead-in does not inflate.
+        Each metric is the mean over steps of that step's value (facts section 5), not
+        recomputed from the means: a precision of 1.0 and a recall of 0.966 can average to an
+        F1 of 0.967.
+
+        When the episode starts with silent steps, a lead-in (``lead_in_steps`` > 0) or a file
+        that begins with a rest, whose steps count like any other as in the original (nothing
+        due, nothing pressed: F1 1), also song_precision, song_recall and song_f1: the same
+        from the first step with a key due, which the silence does not inflate; and
+        ``silent_start_steps``.
         """
         keys = precision_recall_f1(self.active_keys, self.goal_keys)
         pedal = sustain_metrics(self.sustain, self.goal_sustain)
@@ -69,9 +75,12 @@ class Episode:
             "seconds": self.num_steps * self.control_timestep_s,
             "return": float(self.rewards.sum()),
         }
-        start = self.lead_in_steps
+        if self.lead_in_steps > 0:
+            metrics["lead_in_steps"] = self.lead_in_steps
+        due = np.flatnonzero(self.goal_keys.any(axis=1))
+        start = int(due[0]) if due.size else self.lead_in_steps
         if start > 0:
-            metrics["lead_in_steps"] = start
+            metrics["silent_start_steps"] = start
             if self.num_steps > start:
                 song = precision_recall_f1(self.active_keys[start:], self.goal_keys[start:])
                 metrics.update({f"song_{name}": value for name, value in song.items()})
