@@ -5,6 +5,7 @@ import os
 import re
 import subprocess
 import sys
+import time
 import wave
 from pathlib import Path
 
@@ -355,6 +356,8 @@ def test_train_resume_eval_and_play_a_policy(tmp_path):
     [
         (["train", "c-major-chords", "--preset", "nope"], "unknown preset"),
         (["train", "c-major-chords", "--steps", "0"], "--steps must be at least 1"),
+        (["train", "c-major-chords", "--minutes", "0"], "--minutes must be a positive number"),
+        (["train", "c-major-chords", "--minutes", "nan"], "--minutes must be a positive number"),
         (["train", "--resume", "/no/such/run", "--steps", "-5"], "--steps must be at least 1"),
         (["train"], "give a SONG"),
         (["eval", "/no/such/run", "c-major-chords"], "run directory not found"),
@@ -433,3 +436,17 @@ def test_help_names_the_song_and_states_each_default_once(command):
     for block in blocks:
         assert block.count("(default") <= 1, block
     assert "(default: None)" not in result.stdout
+
+
+def test_train_stops_when_its_time_budget_runs_out(tmp_path, capsys):
+    # 3 seconds: far short of the preset's 2000 seed steps; the run stops at the end of the
+    # episode in which the budget runs out, checkpointed, with its evaluated policy kept.
+    run_dir = tmp_path / "run"
+    args = ["train", "c-major-chords", "--preset", "fast-small", "--minutes", "0.05"]
+    start = time.perf_counter()
+    assert main([*args, "--out", str(run_dir), "--no-progress"]) == 0
+    assert time.perf_counter() - start < 90
+    state = json.loads((run_dir / "checkpoints" / "latest.json").read_text())
+    assert 0 < state["step"] < 2000 and state["step"] % 81 == 0  # whole episodes
+    assert (run_dir / "best" / "checkpoints" / "latest.json").is_file()
+    assert f"trained to step {state['step']}" in capsys.readouterr().out

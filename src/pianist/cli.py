@@ -305,6 +305,9 @@ class Train:
         tyro.conf.arg(help_behavior_hint="(default: 1000000; when resuming, the run's own)"),
     ] = None
     """Total environment steps."""
+    minutes: Annotated[float | None, tyro.conf.arg(help_behavior_hint="(optional)")] = None
+    """Wall-clock budget of this call: training stops at the end of the episode in which it
+    runs out (after a checkpoint; the best evaluated policy is kept in OUT/best)."""
     out: Path = Path("runs/train")
     """Run directory (created if missing)."""
     resume: Annotated[Path | None, tyro.conf.arg(help_behavior_hint="(optional)")] = None
@@ -319,6 +322,9 @@ class Train:
 
         if self.steps is not None and self.steps < 1:
             raise CliError(f"--steps must be at least 1, not {self.steps}")
+        if self.minutes is not None and not (math.isfinite(self.minutes) and self.minutes > 0):
+            raise CliError(f"--minutes must be a positive number, not {self.minutes}")
+        budget_s = None if self.minutes is None else 60.0 * self.minutes
         _require_jax()
         show_bar = self.progress and sys.stderr.isatty()
         if self.resume is not None:
@@ -326,7 +332,14 @@ class Train:
                 self.steps if self.steps is not None else int(read_run_config(self.resume)["steps"])
             )
             result = train(
-                None, None, steps, self.resume, resume=True, progress=show_bar, message=_out
+                None,
+                None,
+                steps,
+                self.resume,
+                resume=True,
+                progress=show_bar,
+                message=_out,
+                stop_after_s=budget_s,
             )
         else:
             if self.song is None:
@@ -341,6 +354,7 @@ class Train:
                 self.out,
                 progress=show_bar,
                 message=_out,
+                stop_after_s=budget_s,
             )
         f1 = result.last_eval.get("f1", float("nan"))
         _out(f"trained to step {result.step}: F1 {f1:.3f} -> {result.run_dir}")
