@@ -1,5 +1,6 @@
 """The inverse-kinematics planner plays fingered songs with no training."""
 
+import mujoco
 import numpy as np
 import pytest
 
@@ -403,3 +404,28 @@ def test_a_new_episode_reuses_the_plan_exactly():
     assert np.array_equal(run_episode(env, again, seed=0).actions, actions)
     for a, b in zip(first.hands, again.hands, strict=True):
         assert a.tx_path is b.tx_path  # made once, for the first episode
+
+
+def test_a_finger_whose_key_does_not_sound_is_pushed_harder():
+    # C major scale, frame 50: the middle finger holds E4. Told that the key has not sounded
+    # for two steps while it pressed, the IK sends the fingertip further down.
+    env, planner, _ = _step_planner("c-major-scale-right", 50)
+    hand = planner.hands[0]
+    finger = 2
+    assert hand.pressing[finger]
+    # The count: a key that does not go down while its finger keeps pressing it.
+    planner.key_threshold = planner.key_threshold + 1.0  # no key counts as sounding
+    hand.fingertip_targets(planner, 50, 55)
+    assert hand.unsounded[finger] == 1
+    hand.fingertip_targets(planner, 50, 55)
+    assert hand.unsounded[finger] == 2
+    heights = {}
+    targets, active = hand.fingertip_targets(planner, 50, 55)
+    for count in (0, 2):
+        hand.unsounded[finger] = count
+        hand.solve(env.model, planner.scratch, targets, active, planner.config)
+        # Where the commanded angles (the servo targets) put the fingertip.
+        hand.fingers[finger].set(planner.scratch, hand.fingers[finger].angles)
+        mujoco.mj_kinematics(env.model, planner.scratch)
+        heights[count] = planner.scratch.site_xpos[hand.sites[finger], 2]
+    assert heights[2] < heights[0] - 0.003, heights  # 4.6 mm lower

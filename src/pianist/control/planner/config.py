@@ -197,8 +197,12 @@ class PlannerConfig:
     """Largest change of one joint in one IK iteration."""
     thumb_push_rad: float = 0.3
     """Extra command of a pressing thumb along the joint direction that lowers its tip."""
-    finger_push_rad: float = 0.0
-    """The same for the other fingers."""
+    finger_push_rad: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
+    """The same for the index, middle, ring and little fingers."""
+    unsounded_push_rad: float = 0.3
+    """Added for a finger that has pressed its key for ``unsounded_steps`` without sounding
+    it: resting on the key's top, too weak to push it down (the little finger above all)."""
+    unsounded_steps: int = 2
 
 
 #: Environment options the planner plays best with: the forearm's height slide added. In the

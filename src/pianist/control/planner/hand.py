@@ -58,3 +58,4 @@ class Hand(HandPostures, ForearmPlan, FingerTargets, FingerIK):
         self.stuck = np.zeros(FINGERS_PER_HAND, dtype=int)
         self.last_tips = np.zeros((FINGERS_PER_HAND, 3))
         self.last_key = np.full(FINGERS_PER_HAND, -1)  # key each finger pressed last, or -1
+        self.unsounded = np.zeros(FINGERS_PER_HAND, dtype=int)  # see FingerTargets

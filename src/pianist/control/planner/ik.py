@@ -27,6 +27,7 @@ class FingerIK:
     forearm_body: int
     jacp: np.ndarray
     pressing: np.ndarray
+    unsounded: np.ndarray
 
     def solve(self, m, scratch, targets: np.ndarray, active: np.ndarray, cfg) -> None:
         """Set each finger's joints in ``scratch``: nearest sampled posture, then DLS."""
@@ -61,7 +62,9 @@ class FingerIK:
         mujoco.mj_comPos(m, scratch)
         for f in np.flatnonzero(self.pressing).tolist():
             finger = self.fingers[f]
-            amount = cfg.thumb_push_rad if f == 0 else cfg.finger_push_rad
+            amount = cfg.thumb_push_rad if f == 0 else cfg.finger_push_rad[f - 1]
+            if self.unsounded[f] >= cfg.unsounded_steps:  # pressing its key, not sounding it
+                amount += cfg.unsounded_push_rad
             mujoco.mj_jacSite(m, scratch, self.jacp, None, finger.site)
             down = -finger.jacobian(self.jacp)[2]
             norm = np.linalg.norm(down)

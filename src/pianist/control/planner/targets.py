@@ -35,6 +35,7 @@ class FingerTargets:
     stuck: np.ndarray
     last_tips: np.ndarray
     last_key: np.ndarray
+    unsounded: np.ndarray
 
     def fingertip_targets(
         self, planner: PlannerState, now: int, hover_end: int
@@ -114,6 +115,11 @@ class FingerTargets:
                     height = cfg.transfer_height_m if transfer else cfg.hover_height_m
                     targets[finger, 2] = top + height
                     hovering[finger] = True
+        # Steps each finger has pressed the same key without it sounding (a finger too weak
+        # for it, on the top of the key: the IK pushes such a finger harder).
+        again = self.pressing & (pressed_key == self.last_key)
+        sounding = key_down[np.maximum(pressed_key, 0)] & (pressed_key >= 0)
+        self.unsounded = np.where(again & ~sounding, self.unsounded + 1, 0)
         # A finger keeps its last key while it presses or hovers on its way to the next one.
         self.last_key = np.where(self.pressing, pressed_key, np.where(hovering, self.last_key, -1))
         # Count the steps each hovering finger has stood still.
