@@ -6,7 +6,6 @@ import pytest
 from pianist.control.hand_plan import (
     HandPlanCosts,
     finger_order,
-    free_frames,
     move_frames,
     plan_hand,
 )
@@ -61,8 +60,6 @@ def test_move_frames_follow_the_slide_servo():
     assert move_frames(0.05, DT) == 2
     assert move_frames(0.2, DT) == 4
     assert move_frames(0.4, DT) == 6
-    # A move of several steps lifts the fingers one step before it.
-    assert free_frames(0.01, DT) == 1 and free_frames(0.4, DT) == 7
 
 
 def test_a_long_jump_is_made_in_the_rest_before_it():
@@ -82,7 +79,7 @@ def test_a_jump_without_a_rest_costs_the_frames_the_slide_needs():
     _, relaxed = _plan([(40, 0, 10, 0), (57, 18, 30, 0)], T=30)
     # Both shift once; without the rest the fingers are off the first note for the frames
     # the move needs (a lone note is its hand's outer voice, weighted as such).
-    lost = free_frames(17 * PITCH_M, DT) * HandPlanCosts().outer_voice_weight
+    lost = move_frames(17 * PITCH_M, DT) * HandPlanCosts().outer_voice_weight
     assert plan.cost == pytest.approx(relaxed.cost + lost, abs=0.01)  # comfort terms differ
     assert np.flatnonzero(np.diff(plan.position)).tolist() == [17]
 

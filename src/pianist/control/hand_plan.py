@@ -73,14 +73,6 @@ def move_frames(distance_m: np.ndarray | float, dt: float) -> np.ndarray:
     return np.maximum(1, np.ceil(seconds / dt - 1e-9)).astype(int)
 
 
-def free_frames(distance_m: np.ndarray | float, dt: float) -> np.ndarray:
-    """Frames a shift of ``distance_m`` keeps the hand's fingers off the keys: the slide's
-    :func:`move_frames`, and for a move of several steps one more before it, for the fingers
-    to come up before the hand flies (a finger still on a key is dragged onto the next)."""
-    steps = move_frames(distance_m, dt)
-    return steps + (steps >= 2)
-
-
 @dataclass(frozen=True)
 class HandPlan:
     """The plan of one hand over a piece of T frames.
@@ -430,7 +422,7 @@ def _viterbi(
     T, P = stay.shape
     distance = np.abs(grid[:, None] - grid[None, :])  # (from, to)
     shift = distance > c.shift_m
-    frames_needed = free_frames(distance, dt)  # (P, P)
+    frames_needed = move_frames(distance, dt)  # (P, P)
     moved = distance > 1e-9
     small = np.where(moved, c.small_move_cost + c.small_move_cost_per_m * distance, 0.0)
     # The hand comes from its start position: until the slide can have got to a candidate,

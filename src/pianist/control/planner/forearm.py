@@ -25,7 +25,7 @@ from collections.abc import Callable
 import numpy as np
 import scipy.linalg
 
-from pianist.control.hand_plan import HandPlanCosts, free_frames, move_frames, plan_hand
+from pianist.control.hand_plan import HandPlanCosts, move_frames, plan_hand
 from pianist.control.planner.config import FINGERS_PER_HAND, PlannerConfig, PlannerState
 from pianist.sim import constants as C
 
@@ -244,7 +244,7 @@ class ForearmPlan:
 
         With ``multi_step`` (the whole-piece plan), a jump takes the steps the slide needs
         (:func:`pianist.control.hand_plan.move_frames`) on a minimum-jerk path, the fingers
-        lifted a step before it; otherwise every move takes ``forearm_move_s``.
+        lifted for them; otherwise every move takes ``forearm_move_s``.
 
         The plan's steps become minimum-jerk moves of ``forearm_move_s`` that end
         ``press_lead_frames`` before the note starts (``shift_lead_frames`` for a shift the
@@ -273,13 +273,8 @@ class ForearmPlan:
             need = move_frames(plan[shifts] - plan[shifts - 1], dt)
         else:
             need = np.full(len(shifts), n)
-        lift_first = np.zeros(len(shifts), dtype=int)
-        if multi_step:
-            lift_first = free_frames(plan[shifts] - plan[shifts - 1], dt) - need
-        for k, steps, extra in zip(
-            shifts.tolist(), need.tolist(), lift_first.tolist(), strict=True
-        ):
-            window = slice(max(0, k - steps - extra - lead + delay), max(0, k - lead + delay))
+        for k, steps in zip(shifts.tolist(), need.tolist(), strict=True):
+            window = slice(max(0, k - steps - lead + delay), max(0, k - lead + delay))
             self.free[window] = True
             self.shift_to[window] = k
         if delay:
