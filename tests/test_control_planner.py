@@ -429,3 +429,22 @@ def test_a_finger_whose_key_does_not_sound_is_pushed_harder():
         mujoco.mj_kinematics(env.model, planner.scratch)
         heights[count] = planner.scratch.site_xpos[hand.sites[finger], 2]
     assert heights[2] < heights[0] - 0.003, heights  # 4.6 mm lower
+
+
+def test_the_plan_is_returned_as_arrays_that_cover_the_played_keys():
+    planner = IKPlanner()
+    env = make_env("c-major-scale-both", planner, physics="fast")
+    episode = run_episode(env, planner, seed=0)
+    plan = planner.plan_arrays()
+    T = env.unwrapped.num_steps
+    assert plan["hand_key_span"].shape == (T, 2, 2) and plan["hand_sides"].tolist() == [
+        "right",
+        "left",
+    ]
+    assert plan["planned_fingers"].shape == (T, 88)
+    # Each key played while due lies within the span of the hand whose finger plays it.
+    frames, keys = np.nonzero(episode.active_keys & env.unwrapped.goal.keys)
+    hand = plan["planned_fingers"][frames, keys] // 5
+    low, high = plan["hand_key_span"][frames, hand].T
+    inside = (keys >= low - 0.5) & (keys <= high + 0.5)
+    assert inside.mean() > 0.95, inside.mean()

@@ -94,3 +94,18 @@ def test_bad_episodes_raise(tmp_path) -> None:
     with pytest.raises(MediaError, match="cannot write"):
         plot_pianoroll(ep, tmp_path / "missing" / "d.png")
     assert not list(tmp_path.glob("*.png"))
+
+
+def test_the_planned_hand_spans_are_shaded_on_the_roll(tmp_path) -> None:
+    import matplotlib.image
+
+    plain, shaded = tmp_path / "plain.png", tmp_path / "shaded.png"
+    plot_pianoroll(_episode(), plain, size_in=(8.0, 5.0), dpi=50)
+    episode = _episode()
+    span = np.zeros((10, 1, 2))
+    span[:, 0] = (30.0, 45.0)  # the right hand reaches keys 30-45 throughout
+    episode.extra.update(hand_key_span=span, hand_sides=np.array(["right"]))
+    plot_pianoroll(episode, shaded, size_in=(8.0, 5.0), dpi=50)
+    a, b = matplotlib.image.imread(plain), matplotlib.image.imread(shaded)
+    changed = np.abs(a - b).sum(axis=-1) > 0.05
+    assert changed.sum() > 1000  # the band (and its legend entry) is drawn

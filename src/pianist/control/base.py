@@ -44,6 +44,11 @@ class BaseController:
         """Timing or counters since ``reset``, for metrics.json (none by default)."""
         return {}
 
+    def plan_arrays(self) -> dict[str, np.ndarray]:
+        """What the controller planned for the episode, as arrays over its steps (for plots
+        and learners; none by default)."""
+        return {}
+
     def options_dict(self) -> dict[str, Any]:
         """The controller's settings as plain values, for metrics.json (none by default)."""
         return {}

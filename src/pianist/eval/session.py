@@ -141,6 +141,9 @@ def play(
         settings = getattr(controller, "options_dict", None)
         if settings is not None and settings():
             metrics["controller_options"] = settings()
+        plan = getattr(controller, "plan_arrays", None)
+        if plan is not None:
+            episode.extra.update(plan())
     finally:
         close = getattr(controller, "close", None)
         if close is not None:

@@ -23,6 +23,7 @@ CORRECT_COLOUR = "#2ca02c"
 WRONG_COLOUR = "#d62728"
 MISSED_COLOUR = "#ff7f0e"
 PEDAL_COLOUR = "#555555"
+HAND_SPAN_COLOURS = {"right": "#1f77b4", "left": "#9467bd"}
 
 
 def pianoroll_counts(episode: Episode) -> dict[str, int]:
@@ -120,6 +121,18 @@ def plot_pianoroll(
             hatch="///",
             linewidth=1.0,
         )
+    spans = episode.extra.get("hand_key_span") if hasattr(episode, "extra") else None
+    span_handles = []
+    if spans is not None and len(spans) == steps:
+        # The planner's hand positions: the keys each hand's fingers reach, step by step.
+        edges = np.arange(steps + 1) * dt
+        sides = episode.extra.get("hand_sides", ("right", "left"))
+        for h, side in enumerate(list(sides)[: spans.shape[1]]):
+            colour = HAND_SPAN_COLOURS.get(str(side), PEDAL_COLOUR)
+            lo = np.r_[spans[:, h, 0], spans[-1, h, 0]]
+            hi = np.r_[spans[:, h, 1], spans[-1, h, 1]]
+            roll.fill_between(edges, lo, hi, step="post", color=colour, alpha=0.12, lw=0)
+            span_handles.append(Patch(facecolor=colour, alpha=0.3, label=f"{side} hand reach"))
     _key_axis(roll, low, high, pedal_lane if show_pedal else None)
     roll.set_xlim(0.0, steps * dt)
     roll.set_ylabel("key")
@@ -134,6 +147,7 @@ def plot_pianoroll(
             Patch(facecolor=CORRECT_COLOUR, label="correct"),
             Patch(facecolor=WRONG_COLOUR, label="wrong"),
             Patch(facecolor="none", edgecolor=MISSED_COLOUR, hatch="///", label="missed"),
+            *span_handles,
         ],
         loc="upper left",
         bbox_to_anchor=(1.0, 1.0),

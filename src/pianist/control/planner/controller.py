@@ -114,6 +114,31 @@ class IKPlanner(BaseController):
         hand_plans = [{name: getattr(hand, name) for name in _PLAN_ARRAYS} for hand in self.hands]
         _PLANS[key] = (weakref.ref(goal), self.plan_kind, self.fingers, hand_plans)
 
+    def plan_arrays(self) -> dict[str, np.ndarray]:
+        """The plan since ``reset``, per step:
+
+        - ``hand_key_span``: (T, H, 2) the lowest and highest key (index 0-87, fractional:
+          between two keys' press points) the fingers of each hand (right first) reach from
+          its planned forearm position;
+        - ``hand_sides``: (H,) "right" / "left", the order of the hands above;
+        - ``planned_fingers``: (T, 88) the finger (0-9) the plan gives each due key, -1 none.
+        """
+        key_y = self.key_point[:, 1]
+        order = np.argsort(key_y)
+        spans = []
+        hands = sorted(self.hands, key=lambda h: h.side != "right")
+        for hand in hands:
+            low = hand.tx_plan + hand.full_reach[..., 0].min()
+            high = hand.tx_plan + hand.full_reach[..., 1].max()
+            span = [np.interp(y, key_y[order], order.astype(float)) for y in (low, high)]
+            spans.append(np.stack(span, axis=1))
+        planned = np.where(self.goal.keys, self.fingers, -1)
+        return {
+            "hand_key_span": np.stack(spans, axis=1),
+            "hand_sides": np.array([hand.side for hand in hands]),
+            "planned_fingers": planned,
+        }
+
     def _plan(self, goal, kind: str, refinger: bool) -> int:
         """Plan the hands' positions, fingers and forearm paths (``kind``: "frame" by frame or
         over the whole "piece"; ``refinger``: the piece plan chooses the fingers); returns the
