@@ -265,7 +265,9 @@ class ForearmPlan:
         lead = cfg.press_lead_frames
         if not 0 <= cfg.shift_lead_frames <= lead:
             raise ValueError("shift_lead_frames must be between 0 and press_lead_frames")
-        shifts = np.flatnonzero(np.abs(np.diff(plan)) > cfg.shift_threshold_m) + 1
+        # The whole-piece plan was made knowing which moves it makes with the fingers on the keys.
+        threshold = cfg.hand_plan.shift_m if multi_step else cfg.shift_threshold_m
+        shifts = np.flatnonzero(np.abs(np.diff(plan)) > threshold) + 1
         delay = lead - cfg.shift_lead_frames
         # Steps each shift takes: a long jump needs more than one (the slide's servo has a
         # limited force); the whole-piece plan knows this and has paid for the frames.
