@@ -84,7 +84,12 @@ def make_env(song: Song | str | Path, controller: Any, **options: Any) -> gym.En
     """
     if not isinstance(song, Song):
         song = load_song(song)
-    env: gym.Env = PianoEnv(song, **resolve_env_options(controller, song, **options))
+    return _build_env(song, controller, resolve_env_options(controller, song, **options))
+
+
+def _build_env(song: Song, controller: Any, resolved: dict[str, Any]) -> gym.Env:
+    """The environment for already resolved options, wrapped as the controller asks."""
+    env: gym.Env = PianoEnv(song, **resolved)
     wrap = getattr(controller, "wrap_env", None)
     return wrap(env) if wrap is not None else env
 
@@ -127,7 +132,7 @@ def play(
         # Without labels the fingering reward matches fingertips to keys (facts section 3).
         options.setdefault("fingering_reward", "optimal")
     resolved = resolve_env_options(controller, song, **options)
-    env = make_env(song, controller, **resolved)
+    env = _build_env(song, controller, resolved)
     resolved.setdefault("physics", control_handle(env).config.scene.physics)
 
     start = time.perf_counter()

@@ -97,22 +97,34 @@ class IKPlanner(BaseController):
         cached = _PLANS.get(key)
         if cached is not None and cached[0]() is goal:
             # The same song in the same scene (a new episode): the plan is the same.
-            self.plan_kind, self.fingers, hand_plans = cached[1:]
-            for hand, arrays in zip(self.hands, hand_plans, strict=True):
-                hand.__dict__.update(arrays)
+            self._restore(cached[1])
             return
         if cfg.hand_planning == "best":
             candidates = [("frame", False), ("piece", False), ("piece", True)]
-            playable = [self._plan(goal, kind, refinger) for kind, refinger in candidates]
-            enough = max(playable) - cfg.piece_plan_margin * goal.keys.sum()
-            self.plan_kind = candidates[next(i for i, n in enumerate(playable) if n >= enough)]
+            plans = []
+            for kind, refinger in candidates:
+                playable = self._plan(goal, kind, refinger)
+                plans.append((playable, self._snapshot((kind, refinger))))
+            enough = max(n for n, _ in plans) - cfg.piece_plan_margin * goal.keys.sum()
+            chosen = next(plan for n, plan in plans if n >= enough)
+            self._restore(chosen)
         else:
             self.plan_kind = (cfg.hand_planning, cfg.refinger and cfg.hand_planning == "piece")
-        self._plan(goal, *self.plan_kind)
+            self._plan(goal, *self.plan_kind)
+            chosen = self._snapshot(self.plan_kind)
         if len(_PLANS) >= _PLANS_KEPT:
             del _PLANS[next(iter(_PLANS))]
-        hand_plans = [{name: getattr(hand, name) for name in _PLAN_ARRAYS} for hand in self.hands]
-        _PLANS[key] = (weakref.ref(goal), self.plan_kind, self.fingers, hand_plans)
+        _PLANS[key] = (weakref.ref(goal), chosen)
+
+    def _snapshot(self, kind: tuple[str, bool]) -> tuple[Any, ...]:
+        """The plan just made (its arrays are rebound, never changed, by later plans)."""
+        hands = [{name: getattr(hand, name) for name in _PLAN_ARRAYS} for hand in self.hands]
+        return kind, self.fingers, hands
+
+    def _restore(self, snapshot: tuple[Any, ...]) -> None:
+        self.plan_kind, self.fingers, hands = snapshot
+        for hand, arrays in zip(self.hands, hands, strict=True):
+            hand.__dict__.update(arrays)
 
     def plan_arrays(self) -> dict[str, np.ndarray]:
         """The plan since ``reset``, per step:
