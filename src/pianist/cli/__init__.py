@@ -1,0 +1,78 @@
+"""The ``pianist`` command: list songs, describe a song, play it and score the performance.
+
+Heavy modules (MuJoCo, Gymnasium) are imported inside the subcommands so ``--help`` is instant.
+Every expected failure ends with one readable line on stderr and a non-zero exit status.
+"""
+
+from __future__ import annotations
+
+import sys
+import warnings
+from typing import Annotated, Any
+
+import tyro
+
+from pianist.cli.common import CliError
+from pianist.cli.play import Play
+from pianist.cli.songs import ImportPig, Info, Songs
+from pianist.cli.train import Eval, Train
+
+__all__ = ["CliError", "main"]
+
+
+Command = (
+    Annotated[Songs, tyro.conf.subcommand("songs")]
+    | Annotated[Info, tyro.conf.subcommand("info")]
+    | Annotated[Play, tyro.conf.subcommand("play")]
+    | Annotated[ImportPig, tyro.conf.subcommand("import-pig")]
+    | Annotated[Train, tyro.conf.subcommand("train")]
+    | Annotated[Eval, tyro.conf.subcommand("eval")]
+)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the ``pianist`` console script; returns the exit status."""
+    command = tyro.cli(Command, args=argv, prog="pianist", description=__doc__.splitlines()[0])
+    try:
+        with warnings.catch_warnings():  # restores the library's warning display afterwards
+            warnings.showwarning = _show_warning
+            command.run()
+    except KeyboardInterrupt:
+        sys.stderr.write("pianist: interrupted\n")
+        return 130
+    except Exception as exc:  # noqa: BLE001 - turned into one line below, or re-raised
+        message = _expected_error(exc)
+        if message is None:
+            raise
+        sys.stderr.write(f"pianist: error: {message}\n")
+        return 1
+    return 0
+
+
+def _show_warning(
+    message: Warning | str,
+    category: type[Warning],
+    filename: str,
+    lineno: int,
+    file: Any = None,
+    line: str | None = None,
+) -> None:
+    """Show a warning raised during a command as one line (no file path or source line): the
+    warnings are about the user's input (e.g. a known-broken PIG piece), not about code."""
+    sys.stderr.write(f"pianist: warning: {' '.join(str(message).split())}\n")
+
+
+def _expected_error(exc: Exception) -> str | None:
+    """One line for failures caused by input or environment, None for bugs."""
+    from pianist.env import SimulationUnstableError
+    from pianist.media import MediaError
+    from pianist.music import MusicError
+
+    expected = CliError | MusicError | MediaError | SimulationUnstableError | FileNotFoundError
+    if isinstance(exc, expected):
+        return " ".join(str(exc).split())
+    if isinstance(exc, OSError):
+        return f"{exc.strerror or exc}: {exc.filename}" if exc.filename else str(exc)
+    if isinstance(exc, ValueError):
+        return " ".join(str(exc).split())
+    return None

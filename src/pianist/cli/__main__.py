@@ -1,0 +1,5 @@
+"""``python -m pianist.cli``."""
+
+from pianist.cli import main
+
+raise SystemExit(main())

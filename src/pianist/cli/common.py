@@ -1,0 +1,52 @@
+"""What every subcommand shares: the one-line error, the song argument, controller specs."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Annotated, Any
+
+import tyro
+
+
+class CliError(Exception):
+    """A failure the user can fix; printed as one line."""
+
+
+# The song positional as --help shows it (tyro would show its type, STR).
+SongArg = Annotated[str, tyro.conf.arg(metavar="SONG")]
+
+
+def require_jax() -> None:
+    import importlib.util
+
+    if importlib.util.find_spec("jax") is None:
+        raise CliError("training needs JAX: pip install 'pianist[rl]' (jax, flax, optax)")
+
+
+def make_controller_from_spec(spec: str) -> Any:
+    """A controller from the --controller spec: policy:RUN_DIR, or what make_controller takes."""
+    if spec.startswith("policy:"):
+        from pianist.agents import PolicyController
+
+        return PolicyController(spec.removeprefix("policy:"))
+    from pianist.control import make_controller
+
+    return make_controller(spec)
+
+
+def prepare_dir(path: Path) -> None:
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise CliError(f"cannot create output directory {path}: {exc.strerror}") from None
+    probe = path / ".pianist-write-test"
+    try:
+        probe.write_bytes(b"")
+        probe.unlink()
+    except OSError as exc:
+        raise CliError(f"output directory {path} is not writable: {exc.strerror}") from None
+
+
+def out(text: str) -> None:
+    sys.stdout.write(text + "\n")

@@ -1,0 +1,135 @@
+"""``pianist play``: play a song with a controller and write its results."""
+
+from __future__ import annotations
+
+import math
+import os
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Annotated, Literal
+
+import tyro
+
+from pianist.cli.common import CliError, SongArg
+from pianist.cli.common import make_controller_from_spec as _make_controller
+from pianist.cli.common import out as _out
+
+
+@dataclass(frozen=True)
+class Play:
+    """Play a song and write its metrics, MIDI, actions, audio, piano roll and (optionally) video.
+
+    Writes to OUT: metrics.json, performance.mid, actions.npy, performance.wav, score.wav,
+    pianoroll.png and, with --video, performance.mp4 (the folder appears whole, or not at all).
+    """
+
+    song: tyro.conf.Positional[SongArg]
+    """A built-in song name, a MIDI file (.mid) or a PIG fingering file (.txt)."""
+    controller: str = "planner"
+    """planner; mpc (the paper's predictive sampling; mpc:tenth, or e.g.
+    mpc:paper,num_samples=20,sigma=0.1,horizon_s=0.3,num_knots=3,iterations=8); policy:RUN_DIR
+    (a trained agent); random; zero; or replay:ACTIONS.npy."""
+    fingering: Literal["auto", "file", "robot", "none"] = "auto"
+    """auto: keep the song's fingering and estimate what is missing (hands from a MIDI's
+    tracks when they say so); file: require the file's own; robot: re-finger every note for
+    this robot hand, keeping the song's hands (a human fingering puts the thumb on black keys,
+    which the Shadow thumb cannot press); none: no labels (the fingering reward then matches
+    fingertips to keys; the planner needs fingers)."""
+    out: Path = Path("out")
+    """Output directory: created with the results once they are complete, or replaced whole
+    if it holds an earlier run's results (a folder holding other files is refused)."""
+    physics: Annotated[
+        Literal["faithful", "fast"] | None,
+        tyro.conf.arg(help_behavior_hint="(default: faithful; a trained policy: its own)"),
+    ] = None
+    """Physics preset: faithful (the paper's simulation) or fast (cheaper contacts)."""
+    seed: int = 0
+    """Seed of the episode (environment and controller)."""
+    initial_buffer_s: float = 0.0
+    """Seconds of silence before the song, for the hands to reach the first notes (the
+    original's initial_buffer_time; 0, the benchmark's default, scores the cold start).
+    metrics.json then also has song_precision/recall/f1, over the song's own steps."""
+    video: bool = False
+    """Also render performance.mp4 (with the performance's audio)."""
+    camera: str = "closeup"
+    """Video camera: closeup, left, right, back, egocentric or topdown."""
+    fps: float = 30.0
+    """Video frames per second."""
+    size: tuple[int, int] = (480, 640)
+    """Video frame height and width in pixels (even numbers)."""
+    soundfont: Annotated[
+        Path | None,
+        tyro.conf.arg(help_behavior_hint="(default: the General MIDI one pretty_midi ships)"),
+    ] = None
+    """An .sf2/.sf3 SoundFont for the audio."""
+    audio: bool = True
+    """Write performance.wav and score.wav."""
+
+    def run(self) -> None:
+        if self.video and sys.platform.startswith("linux"):
+            # Offscreen rendering without a display; must be set before mujoco is imported.
+            os.environ.setdefault("MUJOCO_GL", "egl")
+        from pianist.eval.session import make_env, play
+        from pianist.media.results import (
+            MediaOptions,
+            check_media_options,
+            check_output_folder,
+            write_result,
+        )
+        from pianist.music import load_song
+
+        # Everything that can be checked before the (long) episode is checked first.
+        if not (math.isfinite(self.initial_buffer_s) and self.initial_buffer_s >= 0):
+            raise CliError(f"--initial-buffer-s must be >= 0 seconds, not {self.initial_buffer_s}")
+        if self.controller.startswith("policy:") and self.initial_buffer_s:
+            raise CliError(
+                "--initial-buffer-s does not apply to a trained policy, which plays the task it "
+                "was trained on"
+            )
+        song = load_song(self.song, fingering=self.fingering)
+        if self.controller == "planner" and song.fingering_coverage < 1.0:
+            missing = sum(n.finger is None for n in song.notes)
+            raise CliError(
+                f"{self.song}: {missing} of {song.num_notes} notes have no fingering; the "
+                "planner needs a finger for every note (use --fingering auto)"
+            )
+        controller = _make_controller(self.controller)
+        check_output_folder(self.out)
+        media = MediaOptions(
+            audio=self.audio,
+            video=self.video,
+            camera=self.camera,
+            fps=self.fps,
+            size=self.size,
+            soundfont=self.soundfont,
+            progress=sys.stderr.isatty(),
+        )
+        if self.video:  # the cameras are the scene's: build it once to check
+            check_media_options(make_env(song, controller, physics=self.physics), media)
+        else:
+            check_media_options(None, media)
+        result = play(
+            song,
+            controller,
+            physics=self.physics,
+            fingering=self.fingering,
+            initial_buffer_s=self.initial_buffer_s,
+            seed=self.seed,
+            progress=sys.stderr.isatty(),
+        )
+        metrics = result.metrics
+        title = f"{self.song} ({self.controller}, {metrics['physics']} physics)"
+        write_result(
+            result,
+            self.out,
+            media,
+            title=title,
+            extra_metrics={"song": self.song, "controller": self.controller},
+        )
+        song_f1 = f"  song F1 {metrics['song_f1']:.3f}" if "song_f1" in metrics else ""
+        _out(
+            f"{self.song}: precision {metrics['precision']:.3f}  recall {metrics['recall']:.3f}  "
+            f"F1 {metrics['f1']:.3f}{song_f1}  sustain F1 {metrics['sustain_f1']:.3f}  "
+            f"({metrics['steps']} steps, {metrics['realtime_factor']:.1f}x real time) -> {self.out}"
+        )

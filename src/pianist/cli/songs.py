@@ -1,0 +1,155 @@
+"""Subcommands about songs: list them, describe one, import the PIG dataset."""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Annotated, Literal
+
+import tyro
+
+from pianist.cli.common import SongArg
+from pianist.cli.common import out as _out
+
+
+@dataclass(frozen=True)
+class Songs:
+    """List songs with their size and difficulty: duration, notes, notes/s, span, polyphony."""
+
+    suite: Literal[
+        "all", "debug", "robopianist-debug", "open-etude-12", "etude-12", "repertoire-150"
+    ] = "all"
+    """Which suite: the debug songs, the original's debug songs note for note, the shipped open
+    library, or imported PIG pieces."""
+
+    def run(self) -> None:
+        from pianist.music import SUITES, PigDatasetError, list_songs, load_song, song_stats
+
+        suites = SUITES if self.suite == "all" else (self.suite,)
+        _out(
+            f"{'name':40s} {'suite':17s} {'s':>6s} {'notes':>5s} {'n/s':>5s} "
+            f"{'span':>4s} {'poly':>4s}"
+        )
+        flagged = False
+        for suite in suites:
+            try:
+                names = list_songs(suite)
+            except PigDatasetError:
+                if self.suite == "all":
+                    continue  # PIG suites appear once `pianist import-pig` has run
+                raise
+            for name in names:
+                # Known-broken PIG pieces warn on load: a mark in the table, not a warning each.
+                with warnings.catch_warnings(record=True) as caught:
+                    warnings.simplefilter("always")
+                    stats = song_stats(load_song(name))
+                flagged |= bool(caught)
+                span = "-" if stats.max_hand_span is None else str(stats.max_hand_span)
+                _out(
+                    f"{name:40s} {suite:17s} {stats.duration_s:6.1f} {stats.num_notes:5d} "
+                    f"{stats.notes_per_second:5.1f} {span:>4s} {stats.max_polyphony:4d}"
+                    + (" !" if caught else "")
+                )
+        _out(
+            "s: duration in seconds; n/s: notes per second; span: widest hand span in "
+            "semitones (keys held together in one hand; - without hands); poly: most notes "
+            "sounding at once"
+            + ("; !: known problems (`pianist info NAME` lists them)" if flagged else "")
+        )
+
+
+@dataclass(frozen=True)
+class ImportPig:
+    """Convert a copy of the PIG fingering dataset into songs (RoboPianist etude-12 and
+    repertoire-150 names then resolve like built-in songs).
+
+    Every command looks the songs up in one folder, where they are written by default:
+    PIANIST_PIG if set, else pig/ in PIANIST_DATA, else ~/.local/share/pianist/pig (the XDG
+    data folder). After an import with --dest elsewhere, set PIANIST_PIG to that folder (the
+    import prints the exact line): a variable, not a hidden record, keeps each lookup explicit.
+    """
+
+    src: tyro.conf.Positional[Annotated[Path, tyro.conf.arg(metavar="DIR")]]
+    """The dataset folder (e.g. PianoFingeringDataset_v1.2, with FingeringFiles/ and List.csv)."""
+    dest: Annotated[
+        Path | None,
+        tyro.conf.arg(help_behavior_hint="(default: where songs are looked up, see above)"),
+    ] = None
+    """Where to write the songs."""
+    strict: bool = True
+    """Stop at the first unreadable file (else skip it and report it)."""
+
+    def run(self) -> None:
+        from pianist.music import import_pig
+
+        _out(import_pig(self.src, self.dest, strict=self.strict).summary())
+
+
+@dataclass(frozen=True)
+class Info:
+    """Describe a song: duration, notes, hands, fingering coverage, goal frames.
+
+    Hands and fingers the file lacks are given as `play` (with its default --fingering auto)
+    estimates them, saying where the hands come from: the file's fingering, a MIDI file's
+    tracks (named "Right Hand", "LH", "Treble", ... or told apart by register), or estimated.
+    """
+
+    song: tyro.conf.Positional[SongArg]
+    """A built-in song name, a MIDI file (.mid) or a PIG fingering file (.txt)."""
+
+    def run(self) -> None:
+        from pianist.music import (
+            check_playability,
+            describe_midi_hands,
+            goal_frames,
+            load_song,
+            pitch_to_name,
+            song_stats,
+        )
+
+        # Warnings on load (a known-broken PIG piece) are part of the description.
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            song = load_song(self.song)
+            # What `play` plays by default: the missing hands and fingers estimated.
+            played = song if song.has_full_fingering else load_song(self.song, fingering="auto")
+        problems = list(dict.fromkeys(" ".join(str(w.message).split()) for w in caught))
+        problems += [p for p in check_playability(played) if not any(p in q for q in problems)]
+        stats = song_stats(played)
+        frames = goal_frames(song)
+        pitches = [n.pitch for n in song.notes]
+        hands = ", ".join(sorted(played.hands)) or "-"
+        if any(n.hand is None for n in song.notes):
+            is_midi = Path(self.song).suffix.lower() in (".mid", ".midi")
+            parts = describe_midi_hands(self.song) if is_midi else None
+            if parts is not None:
+                hands += f" (from the MIDI file, {parts})"
+            elif song.hands:
+                hands += " (partly estimated: the file names a hand for some notes)"
+            else:
+                hands += " (estimated: the file names none)"
+        fingering = f"{100 * song.fingering_coverage:.0f}% of notes"
+        if not song.has_full_fingering and song.notes:
+            fingering += " in the file (play estimates the rest: --fingering auto)"
+        lines = [
+            f"song:       {song.name or self.song}",
+            f"duration:   {song.duration_s:.2f} s",
+            f"notes:      {song.num_notes}",
+        ]
+        if pitches:
+            lines.append(
+                f"range:      {pitch_to_name(min(pitches))} - {pitch_to_name(max(pitches))}"
+            )
+        lines += [
+            f"hands:      {hands}",
+            f"fingering:  {fingering}",
+            f"sustain:    {len(song.sustain)} pedal intervals",
+            f"goal:       {frames.num_frames} frames at {1 / frames.dt:g} Hz, "
+            f"max {int(frames.keys.sum(axis=1).max(initial=0))} keys at once",
+            f"difficulty: {stats.notes_per_second:.1f} notes/s (peak {stats.peak_notes_per_second}"
+            f" in 1 s), polyphony {stats.max_polyphony}, hand span "
+            + ("-" if stats.max_hand_span is None else f"{stats.max_hand_span} semitones"),
+        ]
+        lines += [f"warning:    {problem}" for problem in problems]
+        _out("\n".join(lines))
