@@ -15,6 +15,7 @@ import tyro
 from pianist.cli.common import CliError
 from pianist.cli.play import Play
 from pianist.cli.songs import ImportPig, Info, Songs
+from pianist.cli.sweep import Sweep
 from pianist.cli.train import Eval, Train
 
 __all__ = ["CliError", "main"]
@@ -27,6 +28,7 @@ Command = (
     | Annotated[ImportPig, tyro.conf.subcommand("import-pig")]
     | Annotated[Train, tyro.conf.subcommand("train")]
     | Annotated[Eval, tyro.conf.subcommand("eval")]
+    | Annotated[Sweep, tyro.conf.subcommand("sweep")]
 )
 
 
