@@ -10,10 +10,14 @@ import pytest
 from pianist.media import (
     MediaError,
     default_soundfont,
+    loudness_dbfs,
+    normalise_loudness,
+    stereo_comparison,
     synthesize_events,
     synthesize_song,
     write_wav,
 )
+from pianist.media.audio import PEAK_CEILING_DBFS, TARGET_LOUDNESS_DBFS
 from pianist.music import Note, Song
 
 SR = 22050  # half the default rate: the tests only need pitch and loudness
@@ -225,3 +229,120 @@ def test_episode_note_events_render() -> None:
     samples = synthesize_events(ep.note_events, ep.end_time_s, sample_rate=SR)
     assert samples.shape == (round((ep.end_time_s + 1.0) * SR), 2)
     assert np.isfinite(samples).all()
+
+
+# ------------------------------------------------------------------ loudness and comparison
+
+
+def _read_wav(path) -> tuple[np.ndarray, int]:
+    with wave.open(str(path), "rb") as w:
+        pcm = np.frombuffer(w.readframes(w.getnframes()), "<i2")
+        return pcm.reshape(-1, w.getnchannels()) / 32767.0, w.getframerate()
+
+
+def _peak_dbfs(samples: np.ndarray) -> float:
+    return 20 * float(np.log10(np.max(np.abs(samples))))
+
+
+def test_loudness_of_a_sine_and_gating() -> None:
+    t = np.arange(2 * SR) / SR
+    sine = 0.5 * np.sin(2 * np.pi * 440 * t)
+    # A sine's mean square is a^2 / 2: 20 log10(0.5) - 3.01 dB.
+    assert loudness_dbfs(sine, SR) == pytest.approx(-9.03, abs=0.02)
+    assert loudness_dbfs(np.stack([sine, sine], axis=1), SR) == pytest.approx(-9.03, abs=0.02)
+    # Silence before it is gated out (whole 400 ms blocks of it); so is a quiet tail.
+    padded = np.concatenate([np.zeros(2 * SR), sine, 0.01 * sine])
+    assert loudness_dbfs(padded, SR) == pytest.approx(-9.03, abs=0.02)
+    assert loudness_dbfs(np.zeros(SR), SR) == -np.inf
+
+
+def test_normalise_reaches_the_target_unless_the_peak_forbids() -> None:
+    t = np.arange(2 * SR) / SR
+    quiet = 0.01 * np.sin(2 * np.pi * 440 * t)
+    scaled, gain = normalise_loudness(quiet, SR)
+    assert loudness_dbfs(scaled, SR) == pytest.approx(TARGET_LOUDNESS_DBFS, abs=0.01)
+    assert gain == pytest.approx(TARGET_LOUDNESS_DBFS - (-40.0 - 3.01), abs=0.02)
+    # A click over a quiet hum: reaching the target would clip, the ceiling rules.
+    spiky = quiet.copy()
+    spiky[SR // 2] = 0.2
+    limited, _ = normalise_loudness(spiky, SR)
+    assert _peak_dbfs(limited) == pytest.approx(PEAK_CEILING_DBFS, abs=0.01)
+    assert loudness_dbfs(limited, SR) < TARGET_LOUDNESS_DBFS - 1
+    silent, gain = normalise_loudness(np.zeros((SR, 2)), SR)
+    assert gain == 0.0 and not silent.any()
+
+
+def test_stereo_comparison_puts_each_track_on_its_side() -> None:
+    left = np.ones((10, 2), np.float32) * 0.5
+    right = np.stack([np.full(6, 0.2), np.full(6, 0.4)], axis=1)
+    out = stereo_comparison(left, right)
+    assert out.shape == (10, 2)
+    np.testing.assert_allclose(out[:, 0], 0.5)
+    np.testing.assert_allclose(out[:6, 1], 0.3)  # the mono mix
+    np.testing.assert_allclose(out[6:, 1], 0.0)  # padded with silence
+
+
+@needs_synth
+def test_per_event_velocities() -> None:
+    events = np.array([[0.0, C4_KEY, 1.0], [0.4, C4_KEY, 0.0], [0.5, C4_KEY, 1.0]])
+    out = synthesize_events(events, 0.9, sample_rate=SR, velocities=np.array([25, 0, 120]))
+    first = out[round(0.05 * SR) : round(0.35 * SR)]
+    second = out[round(0.55 * SR) : round(0.85 * SR)]
+    assert _rms(second) > 1.5 * _rms(first)
+    with pytest.raises(MediaError, match="1..127"):
+        synthesize_events(events, 0.9, sample_rate=SR, velocities=np.array([0, 0, 80]))
+    with pytest.raises(MediaError, match="one per event"):
+        synthesize_events(events, 0.9, sample_rate=SR, velocities=np.array([80, 80]))
+
+
+@pytest.fixture(scope="module")
+def written(tmp_path_factory):
+    """A real short run written with audio: the planner plays a debug song."""
+    from pianist.control import make_controller
+    from pianist.eval.session import play
+    from pianist.media.results import MediaOptions, write_result
+
+    out = tmp_path_factory.mktemp("written") / "run"
+    result = play("twinkle-twinkle", make_controller("planner"), physics="fast")
+    write_result(result, out, MediaOptions(audio=True))
+    return out
+
+
+@needs_synth
+def test_written_wavs_share_one_loudness(written) -> None:
+    for name in ("performance.wav", "score.wav"):
+        samples, _ = _read_wav(written / name)
+        peak = _peak_dbfs(samples)
+        assert peak <= PEAK_CEILING_DBFS + 0.01, name
+        loudness = loudness_dbfs(samples, 44100)
+        # At the target, or under it because the peak reached the ceiling.
+        at_target = abs(loudness - TARGET_LOUDNESS_DBFS) < 0.1
+        assert at_target or abs(peak - PEAK_CEILING_DBFS) < 0.01, (name, loudness, peak)
+
+
+@needs_synth
+def test_comparison_has_the_score_left_and_the_performance_right(written) -> None:
+    comparison, rate = _read_wav(written / "comparison.wav")
+    score, _ = _read_wav(written / "score.wav")
+    performance, _ = _read_wav(written / "performance.wav")
+    assert rate == 44100 and comparison.shape == (max(len(score), len(performance)), 2)
+    for channel, track in ((0, score), (1, performance)):
+        mono = track.mean(axis=1)
+        side = comparison[: len(mono), channel]
+        np.testing.assert_allclose(side, mono, atol=2 / 32767)
+        np.testing.assert_allclose(comparison[len(mono) :, channel], 0.0)
+
+
+@needs_synth
+def test_performance_velocities_come_from_the_strikes(written) -> None:
+    import json
+    import math
+
+    from pianist.music import read_midi
+
+    velocities = [n.velocity for n in read_midi(written / "performance.mid").notes]
+    assert len(velocities) > 5 and len(set(velocities)) > 1, velocities
+    assert all(1 <= v <= 127 for v in velocities)
+    metrics = json.loads((written / "metrics.json").read_text())
+    assert math.isfinite(metrics["velocity_mae"]) and metrics["velocity_mae"] > 0
+    assert metrics["velocity_matched_notes"] > 0

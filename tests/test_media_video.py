@@ -1,4 +1,5 @@
-"""MP4 rendering of a recorded episode: frame count, audio stream, key colours, errors."""
+"""MP4 rendering of a recorded episode: frame count, audio stream, key colours, errors, the
+auto camera's framing, the stage's contrast and the falling-notes strip."""
 
 from __future__ import annotations
 
@@ -19,6 +20,14 @@ import pytest
 
 from pianist.eval import Episode, run_episode
 from pianist.media import MediaError, frame_times, interpolate_qpos, key_colours, render_episode
+from pianist.media.camera import frame_points, project
+from pianist.media.falling_notes import (
+    BACKGROUND_RGB,
+    WHITE_NOTE_RGB,
+    draw_strip,
+    strip_height,
+    strip_layout,
+)
 from pianist.media.video import CORRECT_KEY_RGBA, DUE_KEY_RGBA, WRONG_KEY_RGBA
 from pianist.music import Note, Song
 
@@ -104,13 +113,73 @@ def test_key_colours_follow_events_and_goal() -> None:
     np.testing.assert_allclose(plain[0, C4_KEY], base[C4_KEY])
 
 
+def test_frame_points_sees_every_point_and_is_tight() -> None:
+    rng = np.random.default_rng(0)
+    points = rng.uniform([-0.1, -0.45, 0.0], [0.25, 0.3, 0.15], size=(300, 3))
+    fovy, size, margin = np.radians(45.0), (336, 640), 0.05
+    pos, xyaxes = frame_points(points, fovy_rad=fovy, aspect=size[1] / size[0], margin=margin)
+    pixels = project(points, pos, xyaxes, fovy, size)
+    assert np.all(pixels[:, 2] > 0)
+    # Offsets from the centre as fractions of the half-frame: within 1 - margin ...
+    x = np.abs(pixels[:, 0] - size[1] / 2) / (size[1] / 2)
+    y = np.abs(pixels[:, 1] - size[0] / 2) / (size[0] / 2)
+    assert x.max() <= 1 - margin + 1e-9 and y.max() <= 1 - margin + 1e-9
+    # ... and the closest such camera: some point touches the margin.
+    assert max(x.max(), y.max()) == pytest.approx(1 - margin, abs=1e-9)
+    # Low keys (-y) appear on the left, as the player sees them.
+    low, high = project(np.array([[0, -0.3, 0], [0, 0.3, 0]]), pos, xyaxes, fovy, size)[:, 0]
+    assert low < high
+
+
+def test_falling_note_reaches_the_hit_line_at_its_onset_frame() -> None:
+    dt, fps = 0.05, 30
+    goal = np.zeros((40, 88), dtype=bool)
+    goal[6:12, C4_KEY] = True  # due from 0.30 s (frame 9) to 0.60 s (frame 18)
+    layout = strip_layout(64, 320, (-0.3, 0.3))
+    column = int(np.flatnonzero(layout.column_key == C4_KEY).mean())
+    keys = np.tile([0.9, 0.9, 0.9, 1.0], (88, 1))
+    times = frame_times(40, dt, fps)
+    hit = layout.hit_row
+
+    def strip(frame: int) -> np.ndarray:
+        return draw_strip(layout, float(times[frame]), goal, dt, keys)
+
+    assert strip(9)[hit, column].tolist() == list(WHITE_NOTE_RGB)
+    assert strip(17)[hit, column].tolist() == list(WHITE_NOTE_RGB)
+    for frame in (8, 18):  # one frame before the onset, and at the offset
+        assert strip(frame)[hit, column].tolist() == list(BACKGROUND_RGB), frame
+    # Before it arrives the note is on its way, just above the hit line.
+    lit = np.flatnonzero((strip(8)[: hit + 1, column] == WHITE_NOTE_RGB).all(axis=1))
+    assert lit.size and hit - lit.max() <= layout.px_per_s / fps + 1
+    # Columns of other keys stay empty.
+    other = int(np.flatnonzero(layout.column_key == C4_KEY + 2).mean())
+    assert strip(9)[hit, other].tolist() == list(BACKGROUND_RGB)
+
+
+def test_falling_notes_keyboard_repeats_the_key_colours() -> None:
+    layout = strip_layout(64, 320, (-0.3, 0.3))
+    keys = np.tile([0.9, 0.9, 0.9, 1.0], (88, 1))
+    keys[C4_KEY] = CORRECT_KEY_RGBA
+    keys[C4_KEY + 1] = WRONG_KEY_RGBA  # C#4, a black key
+    out = draw_strip(layout, 0.0, np.zeros((5, 88), bool), 0.05, keys)
+    assert out.shape == (64, 320, 3) and out.dtype == np.uint8
+    top, end = layout.keyboard_rows
+    c4 = int(np.flatnonzero(layout.column_white_key == C4_KEY).mean())
+    cs4 = int(np.flatnonzero(layout.column_key == C4_KEY + 1).mean())
+    green = np.round(np.array(CORRECT_KEY_RGBA[:3]) * 255)
+    red = np.round(np.array(WRONG_KEY_RGBA[:3]) * 255)
+    np.testing.assert_array_equal(out[end - 1, c4], green)  # lower part: the white key
+    np.testing.assert_array_equal(out[top, cs4], red)  # upper part: the black key over it
+    assert strip_height(480) % 2 == 0 and strip_height(480) < 480 // 2
+
+
 # ------------------------------------------------------------------ argument errors
 
 
 @pytest.mark.parametrize(
     ("kwargs", "match"),
     [
-        ({"camera": "ceiling"}, "unknown camera 'ceiling'; choose from back, closeup"),
+        ({"camera": "ceiling"}, "unknown camera 'ceiling'; choose from auto, back, closeup"),
         ({"size": (121, 160)}, "even"),
         ({"size": (1200, 1600)}, "offscreen buffer"),
         ({"size": "big"}, "size"),
@@ -241,3 +310,133 @@ def test_pressed_key_is_coloured(rendered) -> None:
         mean = frames[changed].mean(axis=0)
         others = [c for c in range(3) if c != channel]
         assert mean[channel] > mean[others].max() + 60, (name, mean)
+
+
+# The auto camera and the stage, measured on MuJoCo's own rendering of a random episode (hands
+# anywhere): camera pose as MuJoCo computes it, segmentation to find the hands' pixels.
+_STAGE_SCRIPT = textwrap.dedent(
+    """
+    import json, os, sys
+    os.environ.setdefault("MUJOCO_GL", "egl")
+    import mujoco
+    import numpy as np
+    from pianist.control import RandomController
+    from pianist.env import PianoEnv
+    from pianist.eval import run_episode
+    from pianist.media.camera import add_floor, project
+    from pianist.media.falling_notes import strip_height, strip_layout
+    from pianist.media.video import _recoloured_copy, frame_episode, render_episode
+    from pianist.music import Note, Song
+
+    out = sys.argv[1]
+    song = Song(notes=(Note(48, 0.0, 0.3), Note(72, 0.2, 0.6)), name="wide")
+    env = PianoEnv(song, physics="fast")
+    ep = run_episode(env, RandomController(), seed=3)
+    height, width = size = (240, 320)
+    model = _recoloured_copy(env, mujoco)
+    data = mujoco.MjData(model)
+    frame_episode(model, data, env.scene, ep, size)
+    cam = model.camera("front").id
+    result = {"inside": {}, "pixels": {}}
+    hand_bodies = {}
+    for hand in env.scene.hands:
+        prefix = model.body(hand.forearm_body).name.split("/")[0] + "/"
+        hand_bodies[hand.side] = [b for b in range(model.nbody)
+                                  if model.body(b).name.startswith(prefix)
+                                  and b != hand.forearm_body]
+    inside = {side: [] for side in hand_bodies}
+    for row in ep.qpos:
+        data.qpos[:] = row
+        mujoco.mj_kinematics(model, data)
+        mujoco.mj_camlight(model, data)
+        xmat = data.cam_xmat[cam].reshape(3, 3)
+        xyaxes = np.concatenate([xmat[:, 0], xmat[:, 1]])
+        fovy = np.radians(model.cam_fovy[cam])
+        for side, bodies in hand_bodies.items():
+            px = project(data.xpos[bodies], data.cam_xpos[cam], xyaxes, fovy, size)
+            inside[side].append(bool(np.all((px[:, 2] > 0) & (px[:, 0] >= 0) & (px[:, 0] <= width)
+                                            & (px[:, 1] >= 0) & (px[:, 1] <= height))))
+    result["inside"] = {side: all(v) for side, v in inside.items()}
+
+    data.qpos[:] = ep.qpos[-1]
+    mujoco.mj_kinematics(model, data)
+    mujoco.mj_camlight(model, data)
+    renderer = mujoco.Renderer(model, height=height, width=width)
+    renderer.update_scene(data, camera="front")
+    add_floor(renderer.scene)
+    rgb = renderer.render().astype(float)
+    renderer.enable_segmentation_rendering()
+    renderer.update_scene(data, camera="front")  # no floor: its pixels read as no geom
+    seg = renderer.render()
+    renderer.close()
+    luminance = rgb @ np.array([0.299, 0.587, 0.114])
+    geom_ids = seg[..., 0]
+    is_geom = (seg[..., 1] == int(mujoco.mjtObj.mjOBJ_GEOM)) & (geom_ids >= 0)
+    body_of = np.where(is_geom, model.geom_bodyid[np.maximum(geom_ids, 0)], -1)
+    fingertips = {int(model.site_bodyid[s]) for h in env.scene.hands for s in h.fingertip_sites}
+    hand_mask = np.zeros(seg.shape[:2], bool)
+    for side, bodies in hand_bodies.items():
+        mask = np.isin(body_of, [b for b in bodies if b not in fingertips])
+        result["pixels"][side] = int(mask.sum())
+        hand_mask |= mask
+    background = ~is_geom  # the floor (a scene-only geom) and anything beyond it
+    result["hand_luminance"] = float(luminance[hand_mask].mean())
+    result["background_luminance"] = float(luminance[background].mean())
+    result["background_pixels"] = int(background.sum())
+
+    counts = {}
+    for name, kw in {"notes": dict(falling_notes=True), "auto": {}}.items():
+        counts[name] = render_episode(env, ep, f"{out}/{name}.mp4", size=size, fps=10,
+                                      progress=False, **kw)
+    result["counts"] = counts
+    strip = strip_height(height)
+    layout = strip_layout(strip, width, (-0.5, 0.5))
+    result["hit_line_row"] = height - strip + layout.hit_row + 1
+    result["strip_rows"] = strip
+    json.dump(result, open(f"{out}/stage.json", "w"))
+    """
+)
+
+
+@pytest.fixture(scope="module")
+def stage(tmp_path_factory) -> tuple[Path, dict]:
+    out = tmp_path_factory.mktemp("stage")
+    env = {**os.environ}
+    env.setdefault("MUJOCO_GL", "egl")
+    proc = subprocess.run(
+        [sys.executable, "-c", _STAGE_SCRIPT, str(out)],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    return out, json.loads((out / "stage.json").read_text())
+
+
+def test_auto_camera_sees_both_hands_at_every_step(stage) -> None:
+    _, result = stage
+    assert result["inside"] == {"right": True, "left": True}
+    # MuJoCo's own rendering agrees: both hands cover a good part of the picture.
+    for side in ("right", "left"):
+        assert result["pixels"][side] > 0.01 * 240 * 320, result["pixels"]
+
+
+def test_hands_stand_out_from_the_background(stage) -> None:
+    _, result = stage
+    assert result["background_pixels"] > 0.05 * 240 * 320
+    # Luminance 0..255: the old stage had dark grey hands (about 40) on black (0).
+    assert result["background_luminance"] - result["hand_luminance"] > 60, result
+    assert result["hand_luminance"] > 70, result  # the hands' shapes are lit, not black
+
+
+def test_falling_notes_keep_the_frame_size(stage) -> None:
+    out, result = stage
+    assert result["counts"]["notes"] == result["counts"]["auto"]
+    for name in ("notes", "auto"):
+        assert "320x240" in _ffmpeg_info(out / f"{name}.mp4"), name
+    notes, plain = _frames(out / "notes.mp4"), _frames(out / "auto.mp4")
+    assert notes.shape == plain.shape == (result["counts"]["notes"], 240, 320, 3)
+    # The hit line runs across the strip in every frame; the picture above it is rendered.
+    assert notes[:, result["hit_line_row"]].mean() > 200
+    assert notes[:, : 240 - result["strip_rows"]].std() > 20

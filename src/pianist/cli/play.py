@@ -21,7 +21,8 @@ class Play:
     """Play a song and write its metrics, MIDI, actions, audio, piano roll and (optionally) video.
 
     Writes to OUT: metrics.json, performance.mid, actions.npy, performance.wav, score.wav,
-    pianoroll.png and, with --video, performance.mp4 (the folder appears whole, or not at all).
+    comparison.wav, pianoroll.png and, with --video, performance.mp4 (the folder appears whole,
+    or not at all).
     """
 
     song: tyro.conf.Positional[SongArg]
@@ -52,8 +53,12 @@ class Play:
     metrics.json then also has song_precision/recall/f1, over the song's own steps."""
     video: bool = False
     """Also render performance.mp4 (with the performance's audio)."""
-    camera: str = "closeup"
-    """Video camera: closeup, left, right, back, egocentric or topdown."""
+    camera: str = "auto"
+    """Video camera: auto (both hands and the keys played, from above the player's seat,
+    framed on the piece), front (the whole keyboard), closeup, left, right, back, egocentric or
+    topdown."""
+    falling_notes: bool = False
+    """Draw a falling-notes strip (the goal notes approaching a hit line) under the video."""
     fps: float = 30.0
     """Video frames per second."""
     size: tuple[int, int] = (480, 640)
@@ -100,6 +105,7 @@ class Play:
             audio=self.audio,
             video=self.video,
             camera=self.camera,
+            falling_notes=self.falling_notes,
             fps=self.fps,
             size=self.size,
             soundfont=self.soundfont,

@@ -11,6 +11,13 @@ never does, so ``pip install --no-deps tinysoundfont`` is enough.
 TinySoundFont ignores the sustain-pedal controller (MIDI CC 64), so the pedal is implemented
 here the way a piano's damper pedal works: while it is down, a released key's note-off is held
 back and sent when the pedal lifts (unless the key was pressed again meanwhile).
+
+Loudness: the synthesiser's raw level depends on the soundfont and on how many notes sound at
+once (one mezzo-forte note peaks near -22 dBFS). :func:`normalise_loudness` scales a recording
+to a gated RMS loudness of :data:`TARGET_LOUDNESS_DBFS` (400 ms blocks, gated as EBU R128 gates
+but without its K-weighting filter) unless that would push its peak over
+:data:`PEAK_CEILING_DBFS`, in which case the peak sets the gain: one rule for every file, so a
+performance and its score play back at comparable levels.
 """
 
 from __future__ import annotations
@@ -37,6 +44,13 @@ PEDAL_KEY = -1
 DEFAULT_SAMPLE_RATE = 44100
 DEFAULT_TAIL_S = 1.0
 DEFAULT_SOUNDFONT_NAME = "TimGM6mb.sf2"
+#: Gated RMS loudness (dBFS) a written recording is scaled to (see :func:`loudness_dbfs`).
+TARGET_LOUDNESS_DBFS = -18.0
+#: No sample of a normalised recording exceeds this (dBFS).
+PEAK_CEILING_DBFS = -1.0
+_BLOCK_S = 0.4
+_ABSOLUTE_GATE_DBFS = -70.0
+_RELATIVE_GATE_DB = -10.0
 
 # Event kinds, in the order they are applied when several happen at the same time: a key
 # released and pressed again at one instant must restart the note, and a pedal change takes
@@ -73,6 +87,7 @@ def synthesize_events(
     program: int = 0,
     tail_s: float = DEFAULT_TAIL_S,
     gain_db: float = 0.0,
+    velocities: np.ndarray | None = None,
 ) -> np.ndarray:
     """Render key and pedal events, e.g. :attr:`pianist.eval.Episode.note_events`.
 
@@ -87,7 +102,9 @@ def synthesize_events(
         duration_s: seconds of performance, >= 0.
         sample_rate: output rate in Hz.
         soundfont: an .sf2/.sf3 file; None for :func:`default_soundfont`.
-        velocity: MIDI velocity 1-127 of every note (the simulation has no velocity).
+        velocity: MIDI velocity 1-127 of every note, unless ``velocities`` is given.
+        velocities: None, or (n,) MIDI velocities aligned with ``events`` (read on key-on rows,
+            1-127 there), e.g. from :func:`pianist.media.dynamics.episode_velocities`.
         program: General MIDI program 0-127 of bank 0 (0 is the acoustic grand piano).
         tail_s: seconds rendered after ``duration_s``, >= 0.
         gain_db: output gain in dB (0: one mezzo-forte note peaks near 0.08).
@@ -108,14 +125,25 @@ def synthesize_events(
     if np.any(keys != np.round(keys)) or np.any((keys < PEDAL_KEY) | (keys >= NUM_KEYS)):
         raise MediaError(f"note event keys must be integers in -1..{NUM_KEYS - 1}")
     velocity = _check_midi_value(velocity, "velocity", low=1)
+    per_event = np.full(len(events), velocity, dtype=int)
+    if velocities is not None:
+        given = np.asarray(velocities)
+        if given.shape != (len(events),) or not np.all(np.isfinite(given)):
+            raise MediaError(f"velocities must be {len(events)} finite numbers, one per event")
+        on_rows = (keys != PEDAL_KEY) & (events[:, 2] != 0)
+        if np.any((given[on_rows] < 1) | (given[on_rows] > 127)):
+            raise MediaError("velocities of key-on events must be in 1..127")
+        per_event = np.where(on_rows, np.round(given), velocity).astype(int)
     order = np.argsort(events[:, 0], kind="stable")
     schedule = []
-    for time_s, key, on in events[order].tolist():
+    for (time_s, key, on), vel in zip(
+        events[order].tolist(), per_event[order].tolist(), strict=True
+    ):
         if key == PEDAL_KEY:
             schedule.append((time_s, _PEDAL, int(on != 0), 0))
         else:
             kind = _ON if on != 0 else _OFF
-            schedule.append((time_s, kind, LOWEST_PITCH + int(key), velocity))
+            schedule.append((time_s, kind, LOWEST_PITCH + int(key), vel))
     return _render(schedule, duration_s, sample_rate, soundfont, program, tail_s, gain_db)
 
 
@@ -184,6 +212,77 @@ def write_wav(
                 w.writeframes(pcm.tobytes())
         except OSError as exc:
             raise MediaError(f"cannot write {path}: {exc.strerror or exc}") from None
+
+
+def loudness_dbfs(samples: np.ndarray, sample_rate: int = DEFAULT_SAMPLE_RATE) -> float:
+    """Gated RMS loudness of a recording, dB relative to a full-scale square wave.
+
+    The mean square over both channels of each 400 ms block (consecutive, the last partial one
+    dropped unless it is the only one) is a block's power; blocks under -70 dBFS are dropped
+    (silence), then those more than 10 dB under the mean of the rest (pauses, release tails);
+    the loudness is the mean power of the blocks left. A pure sine of amplitude 1 reads -3 dBFS.
+
+    Args:
+        samples: (n,) or (n, channels) floats.
+        sample_rate: Hz.
+    Returns:
+        dBFS, or -inf for a recording with no block above -70 dBFS.
+    """
+    x = np.asarray(samples, dtype=np.float64)
+    x = x[:, None] if x.ndim == 1 else x
+    block = max(1, round(_BLOCK_S * sample_rate))
+    count = max(1, len(x) // block)
+    power = np.array([np.mean(x[i * block : (i + 1) * block] ** 2) for i in range(count)])
+    with np.errstate(divide="ignore"):
+        level = 10 * np.log10(power)
+    kept = power[level > _ABSOLUTE_GATE_DBFS]
+    if kept.size == 0:
+        return -math.inf
+    relative = 10 * math.log10(float(kept.mean())) + _RELATIVE_GATE_DB
+    kept = kept[10 * np.log10(kept) > relative]
+    return 10 * math.log10(float(kept.mean()))
+
+
+def normalise_loudness(
+    samples: np.ndarray,
+    sample_rate: int = DEFAULT_SAMPLE_RATE,
+    *,
+    target_dbfs: float = TARGET_LOUDNESS_DBFS,
+    ceiling_dbfs: float = PEAK_CEILING_DBFS,
+) -> tuple[np.ndarray, float]:
+    """Scale ``samples`` to ``target_dbfs`` (:func:`loudness_dbfs`), or less if the peak would
+    pass ``ceiling_dbfs``.
+
+    Returns:
+        (scaled float32 samples of the same shape, gain applied in dB); a silent recording
+        comes back unchanged with a gain of 0 dB.
+    """
+    x = np.asarray(samples, dtype=np.float32)
+    loudness = loudness_dbfs(x, sample_rate)
+    peak = float(np.max(np.abs(x))) if x.size else 0.0
+    if not math.isfinite(loudness) or peak == 0.0:
+        return x, 0.0
+    gain_db = min(target_dbfs - loudness, ceiling_dbfs - 20 * math.log10(peak))
+    return (x * np.float32(10 ** (gain_db / 20))).astype(np.float32), gain_db
+
+
+def stereo_comparison(left: np.ndarray, right: np.ndarray) -> np.ndarray:
+    """A stereo track with ``left``'s mono mix on the left and ``right``'s on the right.
+
+    Args:
+        left, right: (n,) or (n, channels) floats; the shorter is padded with silence.
+    Returns:
+        (max(n_left, n_right), 2) float32.
+    """
+    mixes = []
+    for track in (left, right):
+        x = np.asarray(track, dtype=np.float32)
+        mixes.append(x if x.ndim == 1 else x.mean(axis=1))
+    n = max(len(m) for m in mixes)
+    out = np.zeros((n, 2), dtype=np.float32)
+    for channel, mix in enumerate(mixes):
+        out[: len(mix), channel] = mix
+    return out
 
 
 # --------------------------------------------------------------------------------- internals

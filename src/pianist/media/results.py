@@ -1,10 +1,11 @@
 """Writing a played episode's files: the one writer the CLI and scripts share.
 
 :func:`write_result` writes a :class:`pianist.eval.session.PlayResult` into a folder: the
-metrics, the performance as MIDI, the actions, the piano roll and, on request, the audio of
-the performance and of the score and a video. The files are written into a temporary folder
-that replaces ``out`` whole once every file is complete, so an interrupted or failed write
-never leaves a mix of two runs (or half a run) in ``out``.
+metrics, the performance as MIDI (velocities from the keys' strike speeds, see
+:mod:`pianist.media.dynamics`), the actions, the piano roll and, on request, the audio of the
+performance, of the score and of both side by side (comparison.wav) and a video. The files
+are written into a temporary folder that replaces ``out`` whole once every file is complete, so
+an interrupted or failed write never leaves a mix of two runs (or half a run) in ``out``.
 """
 
 from __future__ import annotations
@@ -27,10 +28,20 @@ ACTIONS = "actions.npy"
 PIANOROLL = "pianoroll.png"
 PERFORMANCE_WAV = "performance.wav"
 SCORE_WAV = "score.wav"
+COMPARISON_WAV = "comparison.wav"
 VIDEO = "performance.mp4"
 #: Every file a result folder may hold: a folder holding anything else is not replaced.
 RESULT_FILES = frozenset(
-    {METRICS, PERFORMANCE_MIDI, ACTIONS, PIANOROLL, PERFORMANCE_WAV, SCORE_WAV, VIDEO}
+    {
+        METRICS,
+        PERFORMANCE_MIDI,
+        ACTIONS,
+        PIANOROLL,
+        PERFORMANCE_WAV,
+        SCORE_WAV,
+        COMPARISON_WAV,
+        VIDEO,
+    }
 )
 
 
@@ -39,10 +50,14 @@ class MediaOptions:
     """What to write beside the metrics, MIDI, actions and piano roll."""
 
     audio: bool = True
-    """performance.wav and score.wav."""
+    """performance.wav, score.wav and comparison.wav (score left, performance right), each
+    normalised to the same loudness (:func:`pianist.media.audio.normalise_loudness`)."""
     video: bool = False
     """performance.mp4 (with the performance's audio when ``audio``)."""
-    camera: str = "closeup"
+    camera: str = "auto"
+    """``auto`` (both hands and the keys played, framed on the episode) or a scene camera."""
+    falling_notes: bool = False
+    """Draw the falling-notes strip under the video's picture."""
     fps: float = 30.0
     size: tuple[int, int] = (480, 640)
     """Video frame (height, width) in pixels."""
@@ -118,21 +133,46 @@ def write_result(
     Raises:
         MediaError: the folder cannot be written, or a medium fails.
     """
+    from pianist.media.dynamics import episode_velocities, velocity_metrics, with_velocities
+
     media = media or MediaOptions()
     out = Path(out)
     check_output_folder(out)
-    metrics = {**result.metrics, **(extra_metrics or {})}
+    episode = result.episode
+    metrics = dict(result.metrics)
+    performance = episode.performance()
+    velocities = None
+    if episode.qpos is not None:  # velocities come from the keys' recorded angles
+        velocities = episode_velocities(episode, control_handle(result.env).scene)
+        performance = with_velocities(performance, episode.note_events, velocities)
+        metrics.update(velocity_metrics(performance, _score(result)))
+    metrics.update(extra_metrics or {})
     with atomic_dir(out, error=MediaError) as tmp:
-        save_npy_atomic(result.episode.actions, tmp / ACTIONS)
-        write_midi(result.episode.performance(), tmp / PERFORMANCE_MIDI)
-        _write_media(result, tmp, media, title)
+        save_npy_atomic(episode.actions, tmp / ACTIONS)
+        write_midi(performance, tmp / PERFORMANCE_MIDI)
+        _write_media(result, tmp, media, title, velocities)
         write_json_atomic(metrics, tmp / METRICS)
         names = sorted(p.name for p in tmp.iterdir())
     return [out / name for name in names]
 
 
-def _write_media(result: PlayResult, folder: Path, media: MediaOptions, title: str | None) -> None:
-    from pianist.media.audio import synthesize_events, synthesize_song, write_wav
+def _score(result: PlayResult) -> Any:
+    """The song as the episode asked for it: it starts after the lead-in, as the performance's
+    song does."""
+    episode = result.episode
+    return delay(result.song, episode.lead_in_steps * episode.control_timestep_s)
+
+
+def _write_media(
+    result: PlayResult, folder: Path, media: MediaOptions, title: str | None, velocities: Any
+) -> None:
+    from pianist.media.audio import (
+        normalise_loudness,
+        stereo_comparison,
+        synthesize_events,
+        synthesize_song,
+        write_wav,
+    )
     from pianist.media.plots import plot_pianoroll
 
     handle = control_handle(result.env)
@@ -143,11 +183,15 @@ def _write_media(result: PlayResult, folder: Path, media: MediaOptions, title: s
     performance = None
     if media.audio:
         duration = episode.num_steps * episode.control_timestep_s
-        performance = synthesize_events(episode.note_events, duration, soundfont=media.soundfont)
+        performance, _ = normalise_loudness(
+            synthesize_events(
+                episode.note_events, duration, soundfont=media.soundfont, velocities=velocities
+            )
+        )
         write_wav(performance, folder / PERFORMANCE_WAV)
-        # The score starts where the performance's song does: after the lead-in.
-        score = delay(result.song, episode.lead_in_steps * episode.control_timestep_s)
-        write_wav(synthesize_song(score, soundfont=media.soundfont), folder / SCORE_WAV)
+        score, _ = normalise_loudness(synthesize_song(_score(result), soundfont=media.soundfont))
+        write_wav(score, folder / SCORE_WAV)
+        write_wav(stereo_comparison(score, performance), folder / COMPARISON_WAV)
     if media.video:
         from pianist.media.video import render_episode
 
@@ -160,4 +204,5 @@ def _write_media(result: PlayResult, folder: Path, media: MediaOptions, title: s
             size=media.size,
             audio=performance,
             progress=media.progress,
+            falling_notes=media.falling_notes,
         )

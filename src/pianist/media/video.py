@@ -22,19 +22,28 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from pianist.files import atomic_path
+from pianist.media.camera import add_floor, auto_camera_points, frame_points, project, style_model
 from pianist.media.errors import MediaError
+from pianist.media.falling_notes import draw_strip, step_index, strip_height, strip_layout
+from pianist.sim.constants import KEYBOARD_LENGTH_M, WHITE_KEY_HEIGHT_M, WHITE_KEY_LENGTH_M
 
 if TYPE_CHECKING:
     from pianist.eval import Episode
 
 PEDAL_KEY = -1
 NUM_KEYS = 88
+#: The default camera: the scene's ``front`` camera moved as close as it can be while seeing
+#: both hands at every step and every key the episode asks for or plays (see
+#: :mod:`pianist.media.camera`).
+AUTO_CAMERA = "auto"
+_FRAMED_CAMERA = "front"
 
-# RGBA colours. Keys: green when a sounding key is due, red when it is not, a pale yellow for a
-# due key that is not sounding (shows what should be played).
+# RGBA colours. Keys: green when a sounding key is due, red when it is not, amber for a due key
+# that is not sounding (shows what should be played; saturated enough to stand out on a white
+# key under the lights).
 CORRECT_KEY_RGBA = (0.20, 0.75, 0.30, 1.0)
 WRONG_KEY_RGBA = (0.90, 0.15, 0.15, 1.0)
-DUE_KEY_RGBA = (1.00, 0.90, 0.45, 1.0)
+DUE_KEY_RGBA = (1.00, 0.72, 0.10, 1.0)
 # Fingertips, thumb..little (the same on both hands), chosen apart from the key colours.
 FINGER_RGBA = (
     (0.12, 0.47, 0.71, 1.0),  # thumb: blue
@@ -66,23 +75,29 @@ def render_episode(
     episode: Episode,
     path: str | os.PathLike[str],
     *,
-    camera: str = "closeup",
+    camera: str = AUTO_CAMERA,
     fps: float = 30,
     size: tuple[int, int] = (480, 640),
     audio: np.ndarray | None = None,
     sample_rate: int = 44100,
     progress: bool = True,
     show_goal: bool = True,
+    falling_notes: bool = False,
 ) -> int:
     """Replay ``episode`` in ``env``'s scene and write it to an MP4 file.
 
     Frame i shows time i / fps (see :func:`frame_times`): the recorded joint positions
     (``episode.qpos``, one row per control step) are linearly interpolated in between steps.
     Keys sounding at that instant (from ``episode.note_events``) are green when due in that
-    control step's goal and red when not; with ``show_goal``, due keys not sounding are pale
-    yellow. Each fingertip has its own colour (thumb blue, index orange, middle purple, ring
-    pink, little cyan). Shadows and reflections are off, for speed. A 480x640 frame takes
-    ~35-45 ms to render and encode on a 2-core CPU with software EGL (the first one ~0.4 s).
+    control step's goal and red when not; with ``show_goal``, due keys not sounding are
+    amber. Each fingertip has its own colour (thumb blue, index orange, middle purple, ring
+    pink, little cyan); the hands are a light blue-grey on a light floor. Shadows and
+    reflections are off, for speed. A 480x640 frame takes ~35-45 ms to render and encode on a
+    2-core CPU with software EGL (the first one ~0.4 s).
+
+    With ``falling_notes`` the lower part of each frame (:func:`strip_height` rows) is the
+    falling-notes strip of :mod:`pianist.media.falling_notes` and the picture above it is
+    rendered that much shorter, so the frame keeps ``size``.
 
     Args:
         env: the :class:`pianist.env.PianoEnv` that played the episode, or its
@@ -90,7 +105,9 @@ def render_episode(
             ``scene`` are read, never changed).
         episode: a recorded episode with ``qpos`` (as :func:`pianist.eval.run_episode` makes).
         path: the .mp4 file to write, atomically; its folder must exist.
-        camera: a camera name of the model (closeup, left, right, back, egocentric, topdown).
+        camera: ``auto`` (the default: both hands and the keys played, from above the
+            player's seat, framed on this episode) or a camera name of the model (front,
+            closeup, left, right, back, egocentric, topdown).
         fps: video frames per second, > 0.
         size: (height, width) in pixels, both even (H.264 4:2:0) and within the model's
             offscreen buffer (1920x1080).
@@ -100,6 +117,7 @@ def render_episode(
         sample_rate: Hz of ``audio``.
         progress: show a tqdm progress bar on stderr.
         show_goal: tint due keys that are not sounding.
+        falling_notes: draw the falling-notes strip under the picture.
     Returns:
         The number of video frames written.
     Raises:
@@ -124,16 +142,34 @@ def render_episode(
     frame_qpos = interpolate_qpos(qpos, times, episode.control_timestep_s, linear=hinge_only)
     frame_keys = key_colours(episode, times, model.geom_rgba[key_geoms], show_goal=show_goal)
 
-    renderer = _make_renderer(mujoco, model, height, width)
+    strip_rows = strip_height(height) if falling_notes else 0
+    picture = (height - strip_rows, width)
+    if camera == AUTO_CAMERA:
+        frame_episode(model, data, env.scene, episode, picture)
+        camera = _FRAMED_CAMERA
+    layout = None
+    if falling_notes:
+        span = keyboard_span(model, data, model.camera(camera).id, picture)
+        layout = strip_layout(strip_rows, width, span)
+    goal_keys = np.asarray(episode.goal_keys, dtype=bool)
+
+    renderer = _make_renderer(mujoco, model, *picture)
 
     def frames() -> Iterator[np.ndarray]:
-        for qpos_i, keys_i in zip(frame_qpos, frame_keys, strict=True):
+        for time_i, qpos_i, keys_i in zip(times, frame_qpos, frame_keys, strict=True):
             data.qpos[:] = qpos_i
             mujoco.mj_kinematics(model, data)
             mujoco.mj_camlight(model, data)  # cameras and lights are not part of kinematics
             model.geom_rgba[key_geoms] = keys_i
             renderer.update_scene(data, camera=camera)
-            yield renderer.render()
+            add_floor(renderer.scene)
+            image = renderer.render()
+            if layout is not None:
+                strip = draw_strip(
+                    layout, float(time_i), goal_keys, episode.control_timestep_s, keys_i
+                )
+                image = np.concatenate([image, strip])
+            yield image
 
     try:
         with tempfile.TemporaryDirectory(prefix="pianist-video-") as workdir:
@@ -161,7 +197,7 @@ def check_video_options(
     Raises:
         MediaError: an unknown camera, a bad frame rate or size.
     """
-    cameras = sorted(model.camera(i).name for i in range(model.ncam))
+    cameras = sorted([AUTO_CAMERA, *(model.camera(i).name for i in range(model.ncam))])
     if camera not in cameras:
         raise MediaError(f"unknown camera {camera!r}; choose from {', '.join(cameras)}")
     height, width = _check_size(size, model)
@@ -211,7 +247,7 @@ def key_colours(
     times = np.asarray(times, dtype=np.float64)
     sounding = _sounding_keys(episode.note_events, times)
     goal_keys = np.asarray(episode.goal_keys, dtype=bool)
-    rows = np.clip((times / episode.control_timestep_s).astype(int), 0, len(goal_keys) - 1)
+    rows = np.clip(step_index(times, episode.control_timestep_s), 0, len(goal_keys) - 1)
     due = goal_keys[rows]
     out = np.repeat(np.asarray(base_rgba, dtype=np.float64)[None], len(times), axis=0)
     if show_goal:
@@ -265,9 +301,84 @@ def _check_qpos(episode: Any, nq: int) -> np.ndarray:
     return qpos
 
 
+def frame_episode(
+    model: Any, data: Any, scene: Any, episode: Episode, size: tuple[int, int]
+) -> tuple[np.ndarray, np.ndarray]:
+    """Move ``model``'s ``front`` camera to frame the episode (see :mod:`pianist.media.camera`).
+
+    Args:
+        model: a render-only model copy (changed in place); data: a scratch ``MjData``.
+        scene: the environment's :class:`pianist.sim.scene.Scene` (hands and keys).
+        episode: the record (qpos, goal keys, note events).
+        size: (height, width) of the picture.
+    Returns:
+        (pos, xyaxes) of the camera, as :func:`pianist.media.camera.frame_points` gives them.
+    """
+    import mujoco
+
+    hand_bodies = [
+        body
+        for hand in scene.hands
+        for body in range(model.nbody)
+        if model.body(body).name.startswith(model.body(hand.forearm_body).name.split("/")[0] + "/")
+        and body != hand.forearm_body
+    ]
+    events = np.asarray(episode.note_events, dtype=np.float64).reshape(-1, 3)
+    played = events[(events[:, 1] >= 0) & (events[:, 2] != 0), 1].astype(int)
+    asked = np.flatnonzero(np.asarray(episode.goal_keys, dtype=bool).any(axis=0))
+    keys = np.union1d(played, asked)
+    qpos = _check_qpos(episode, model.nq)
+    points = auto_camera_points(
+        model, data, qpos, np.asarray(hand_bodies, dtype=int), np.asarray(scene.key_geoms)[keys]
+    )
+    cam = model.camera(_FRAMED_CAMERA).id
+    fovy = np.radians(model.cam_fovy[cam])
+    pos, xyaxes = frame_points(points, fovy_rad=float(fovy), aspect=size[1] / size[0])
+    right, up = xyaxes[:3], xyaxes[3:]
+    rotation = np.stack([right, up, np.cross(right, up)], axis=1)  # columns: camera x, y, z
+    quat = np.zeros(4)
+    mujoco.mju_mat2Quat(quat, rotation.flatten())
+    model.cam_pos[cam] = pos
+    model.cam_quat[cam] = quat
+    return pos, xyaxes
+
+
+def keyboard_span(model: Any, data: Any, camera: int, size: tuple[int, int]) -> tuple[float, float]:
+    """World y (m) along the keyboard's front edge seen at the picture's left and right edges.
+
+    For a camera whose image rows run along the keyboard (the auto, front, closeup and back
+    cameras) the falling notes then line up with the keys above them; for the others it is
+    the whole keyboard.
+    """
+    import mujoco
+
+    mujoco.mj_kinematics(model, data)
+    mujoco.mj_camlight(model, data)
+    xmat = data.cam_xmat[camera].reshape(3, 3)
+    right, forward = xmat[:, 0], -xmat[:, 2]
+    half = KEYBOARD_LENGTH_M / 2
+    if abs(right[1]) < 0.9 or abs(forward[1]) > 0.05:
+        return (-half, half)
+    edge = np.array([[WHITE_KEY_LENGTH_M / 2, y, WHITE_KEY_HEIGHT_M] for y in (-half, half)])
+    pixels = project(
+        edge,
+        data.cam_xpos[camera],
+        np.concatenate([xmat[:, 0], xmat[:, 1]]),
+        float(np.radians(model.cam_fovy[camera])),
+        size,
+    )
+    (c0, _, d0), (c1, _, d1) = pixels
+    if min(d0, d1) <= 0:
+        return (-half, half)
+    per_px = 2 * half / (c1 - c0)
+    return (-half - c0 * per_px, -half + (size[1] - c0) * per_px)
+
+
 def _recoloured_copy(env: Any, mujoco: Any) -> Any:
-    """A copy of the model with flat-coloured fingertips and sleeping disabled."""
+    """A copy of the model with flat-coloured fingertips, lighter hands, brighter lights and
+    sleeping disabled."""
     model = copy.deepcopy(env.model)
+    style_model(model)
     # A fresh MjData has everything awake, but keep kinematics from ever skipping a body.
     model.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_SLEEP)
     for hand in env.scene.hands:

@@ -243,6 +243,9 @@ def _add_stage(spec: mujoco.MjSpec) -> None:
         "back": ((0.9, 0.0, 0.6), (0.0, 0.0, 0.0)),
         "egocentric": ((0.55, 0.0, 0.5), (-0.05, 0.0, 0.0)),
         "topdown": ((0.0, 0.0, 1.4), (0.0, 0.0, 0.0)),
+        # The whole keyboard from above the player's seat, tilted down 55 degrees (the video's
+        # ``auto`` camera is this one moved closer to what a piece plays).
+        "front": ((0.79, 0.0, 1.12), (0.035, 0.0, 0.05)),
     }
     for name, (pos, target) in cameras.items():
         world.add_camera(name=name, pos=pos, xyaxes=_look_at(np.array(pos), np.array(target)))
