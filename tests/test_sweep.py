@@ -11,13 +11,10 @@ import csv
 import json
 import os
 import re
-import secrets
-import shutil
 import signal
 import socket
 import subprocess
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -26,20 +23,18 @@ import pytest
 from pianist.cli import main
 from pianist.music import list_songs
 from pianist.sweep import Cell, SweepOptions, cell_id, expand, run_sweep, songs_of
+from pianist.sweep.cluster import local_cluster
 from pianist.sweep.table import RESULTS_CSV, RESULTS_JSON, SUMMARY_JSON, SUMMARY_PNG, collect_rows
 from pianist.sweep.tasks import CELL_RECORD, CELLS_DIR, RUNNING_DIR, execute_cell
 
 SONG = "c-major-chords"
-RAY = Path(sys.executable).parent / "ray"
 SWEEP = [sys.executable, "-m", "pianist.cli", "sweep"]
-# Ray's variables this test process may hold after a local sweep: the subprocesses below
-# choose their own.
-_RAY_ENV_DROP = ("RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER", "RAY_ADDRESS")
 
 
-def _env(**extra: str) -> dict[str, str]:
-    env = {k: v for k, v in os.environ.items() if k not in _RAY_ENV_DROP}
-    return {**env, "RAY_USAGE_STATS_ENABLED": "0", **extra}
+def _env() -> dict[str, str]:
+    """This environment without RAY_ADDRESS, which would send a sweep to another Ray."""
+    env = {k: v for k, v in os.environ.items() if k != "RAY_ADDRESS"}
+    return {**env, "RAY_USAGE_STATS_ENABLED": "0"}
 
 
 def _rows(out: Path) -> list[dict[str, str]]:
@@ -123,6 +118,21 @@ def test_cli_refuses_a_bad_grid_in_one_line_before_ray_starts(tmp_path, capsys):
         assert not (out / CELLS_DIR).exists()
 
 
+def test_ray_is_imported_only_when_a_sweep_runs():
+    code = "import sys, pianist.cli, pianist.sweep; print('ray' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"
+
+
+def test_a_sweep_folder_holds_one_task(tmp_path):
+    out = tmp_path / "sweep"
+    out.mkdir()
+    (out / "sweep.json").write_text(json.dumps({"task": "train", "cells": []}))
+    cells = expand("play", [(SONG, "debug")], ["zero"], [None], [0])
+    with pytest.raises(ValueError, match="holds a sweep of task 'train'"):
+        run_sweep(cells, out, workers=1)
+
+
 def test_list_prints_the_cells_without_running_them(tmp_path, capsys):
     out = tmp_path / "sweep"
     args = ["sweep", "--songs", SONG, "--controllers", "zero", "random", "--seeds", "0", "1"]
@@ -145,6 +155,7 @@ def test_play_sweep_writes_a_row_per_cell_reports_a_failed_cell_and_skips_finish
     lines: list[str] = []
     report = run_sweep(cells, out, workers=2, message=lines.append)
     assert report.ran == 4 and report.skipped == 0 and report.failed == 2
+    assert "RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER" not in os.environ  # set for the local Ray only
 
     rows = _rows(out)
     assert [row["id"] for row in rows] == [cell.id for cell in cells]
@@ -229,108 +240,29 @@ def test_a_worker_killed_mid_cell_is_retried_and_no_row_is_lost_or_doubled(tmp_p
     assert "4 cells: 4 ok, 0 failed" in stdout
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
-def _stop(node: subprocess.Popen) -> None:
-    """Stop one `ray start --block` node: SIGTERM drains and stops its processes; if that
-    hangs, kill its process group (only the processes this node started)."""
-    if node.poll() is None:
-        node.send_signal(signal.SIGTERM)
-        try:
-            node.wait(timeout=40)
-            return
-        except subprocess.TimeoutExpired:
-            pass
-    try:
-        os.killpg(node.pid, signal.SIGKILL)
-    except ProcessLookupError:
-        pass
-    node.wait(timeout=10)
-
-
 def test_two_ray_nodes_on_this_machine_run_one_sweep(tmp_path):
-    """A head on 127.0.0.2 and a second node joined to it (each 1 CPU, its own temp folder,
-    token authentication with a token of this test) run one sweep given --address."""
-    port = _free_port()
-    env = _env(RAY_AUTH_MODE="token", RAY_AUTH_TOKEN=secrets.token_hex(16))
-    common = ["--num-cpus=1", "--object-store-memory=100000000", "--disable-usage-stats", "--block"]
-    nodes: list[subprocess.Popen] = []
-    # Ray's socket paths must stay under 108 bytes: a short temp folder, not pytest's.
-    ray_tmp = Path(tempfile.mkdtemp(prefix="pianist-ray-"))
-
-    def start(args: list[str], name: str) -> None:
-        (ray_tmp / name).mkdir()
-        log = open(tmp_path / f"{name}.log", "w")  # noqa: SIM115 - closed with the test's tmp
-        nodes.append(
-            subprocess.Popen(
-                [str(RAY), "start", *args, f"--temp-dir={ray_tmp / name}", *common],
-                env=env,
-                stdout=log,
-                stderr=subprocess.STDOUT,
-                start_new_session=True,
-            )
-        )
-
-    address = f"127.0.0.2:{port}"
+    """A head and a second node joined to it (1 CPU each, their own temporary folders and
+    token) run one sweep given --address; cells are spread over both."""
     out = tmp_path / "sweep"
-    try:
-        head = ["--head", f"--port={port}", "--node-ip-address=127.0.0.2"]
-        start([*head, "--include-dashboard=false"], "head")
-        _wait_for_port("127.0.0.2", port, nodes[0], tmp_path / "head.log")
-        start([f"--address={address}"], "node2")
-        status = subprocess.run(
-            [sys.executable, "-c", _WAIT_FOR_NODES, address],
-            env=env,
-            capture_output=True,
-            text=True,
-            timeout=60,
-        )
-        assert status.returncode == 0, status.stderr[-2000:]
-        command = [*SWEEP, "--songs", SONG, "--physics", "fast"]
-        command += ["--controllers", "zero", "random", "--seeds", "0", "1"]
+    command = [*SWEEP, "--songs", SONG, "--physics", "fast"]
+    command += ["--controllers", "zero", "random", "--seeds", "0", "1"]
+    with local_cluster(num_nodes=2, cpus_per_node=1) as cluster:
         done = subprocess.run(
-            [*command, "--address", address, "--out", str(out)],
-            env=env,
+            [*command, "--address", cluster.address, "--out", str(out)],
+            env=cluster.env,
             capture_output=True,
             text=True,
             timeout=150,
         )
-        assert done.returncode == 0, done.stderr[-2000:]
-    finally:
-        for node in reversed(nodes):
-            _stop(node)
-        shutil.rmtree(ray_tmp, ignore_errors=True)
+    assert done.returncode == 0, done.stderr[-2000:]
     rows = _rows(out)
     assert len(rows) == 4 and all(row["status"] == "ok" for row in rows), rows
     assert len({row["node"] for row in rows}) == 2  # both nodes ran cells
-    assert "Ray cluster 127.0.0.2" in done.stdout
-
-
-_WAIT_FOR_NODES = """
-import logging, sys, time
-import ray
-ray.init(address=sys.argv[1], log_to_driver=False, logging_level=logging.ERROR)
-deadline = time.monotonic() + 45
-while sum(n["Alive"] for n in ray.nodes()) < 2:
-    assert time.monotonic() < deadline, ray.nodes()
-    time.sleep(0.2)
-"""
-
-
-def _wait_for_port(host: str, port: int, node: subprocess.Popen, log: Path) -> None:
-    deadline = time.monotonic() + 60
-    while time.monotonic() < deadline:
-        assert node.poll() is None, log.read_text()[-2000:]
-        try:
-            with socket.create_connection((host, port), timeout=1):
-                return
-        except OSError:
-            time.sleep(0.2)
-    raise AssertionError(f"the head did not listen on {host}:{port}: {log.read_text()[-2000:]}")
+    assert f"Ray cluster {cluster.address}" in done.stdout
+    # Every process of the cluster is gone (its head's port no longer answers).
+    host, port = cluster.address.split(":")
+    with pytest.raises(OSError):
+        socket.create_connection((host, int(port)), timeout=1).close()
 
 
 def test_train_and_eval_cells(tmp_path):
