@@ -561,3 +561,50 @@ def test_a_key_left_asleep_below_its_stop_is_woken_before_the_next_step():
     velocity = data.qvel[scene.key_dof[[stuck, resting, moved]]]
     assert velocity.tolist() == [-WAKE_VELOCITY_RAD_S, 0.0, 0.0]
     assert mujoco.mjtEnableBit.mjENBL_SLEEP & model.opt.enableflags
+
+
+@pytest.mark.parametrize("physics", ["faithful", "fast"])
+def test_a_restored_snapshot_replays_the_steps_exactly(physics):
+    # Snapshot mid-episode, play on; restore (here and in a fork) and play the same actions:
+    # the same states, rewards and note events, step for step (sleeping keys included).
+    env = PianoEnv("twinkle-twinkle", physics=physics)
+    env.reset(seed=0)
+    rng = np.random.default_rng(1)
+    actions = rng.uniform(-1, 1, (30, env.action_space.shape[0])).astype(np.float32)
+    for action in actions[:10]:
+        env.step(action)
+    state = env.snapshot()
+
+    def play_on(target):
+        out = []
+        for action in actions[10:]:
+            obs, reward, _, _, info = target.step(action)
+            out.append((target.data.qpos.copy(), reward, info["active_keys"], info["note_events"]))
+        return out
+
+    first = play_on(env)
+    fork_env = env.fork()
+    fork_env.restore(state)
+    env.restore(state)
+    for again in (play_on(env), play_on(fork_env)):
+        for (q1, r1, a1, e1), (q2, r2, a2, e2) in zip(first, again, strict=True):
+            np.testing.assert_array_equal(q1, q2)
+            assert r1 == r2
+            np.testing.assert_array_equal(a1, a2)
+            assert e1 == e2
+    assert env.step_index == fork_env.step_index == 30
+
+
+def test_a_fork_is_independent_of_its_source():
+    env = PianoEnv("twinkle-twinkle", physics="fast")
+    env.reset(seed=0)
+    other = env.fork()
+    before = env.data.qpos.copy()
+    for _ in range(3):
+        other.step(np.ones(env.action_space.shape[0], dtype=np.float32))
+    np.testing.assert_array_equal(env.data.qpos, before)
+    assert env.step_index == 0 and other.step_index == 3
+    bigger = PianoEnv("twinkle-twinkle", physics="fast", forearm_dofs=("tx", "ty", "tz"))
+    bigger.reset(seed=0)
+    with pytest.raises(ValueError, match="another environment"):
+        env.restore(bigger.snapshot())

@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING
 import gymnasium as gym
 import numpy as np
 
-from pianist.env.piano_env import PianoEnv, action_to_ctrl
+from pianist.env.piano_env import EnvState, PianoEnv, action_to_ctrl
 
 if TYPE_CHECKING:
     import mujoco
@@ -97,6 +97,15 @@ class ControlHandle:
         of :meth:`action_to_ctrl` inside the control range."""
         low, high = self._env.model.actuator_ctrlrange.T
         return np.clip(2.0 * (np.asarray(ctrl) - low) / (high - low) - 1.0, -1.0, 1.0)
+
+    def snapshot(self) -> EnvState:
+        """The environment's episode state now (a copy; see :meth:`PianoEnv.snapshot`)."""
+        return self._env.snapshot()
+
+    def fork(self) -> PianoEnv:
+        """A private copy of the environment in its current state, to look ahead in: step it
+        and :meth:`PianoEnv.restore` it to any :meth:`snapshot` of this one."""
+        return self._env.fork()
 
 
 def control_handle(env: gym.Env) -> ControlHandle:

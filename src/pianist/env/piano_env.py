@@ -34,6 +34,8 @@ goal frame and ends *truncated* after the last; with ``wrong_press_termination``
 
 from __future__ import annotations
 
+import copy
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -90,6 +92,22 @@ def resolve_goal(song: Song | GoalFrames | str | Path, dt: float) -> tuple[GoalF
         return song, None
     resolved = song if isinstance(song, Song) else load_song(song)
     return goal_frames(resolved, dt=dt), resolved
+
+
+@dataclass(frozen=True)
+class EnvState:
+    """A :class:`PianoEnv`'s episode state between two steps (:meth:`PianoEnv.snapshot`):
+    restored, the episode goes on exactly as it would have (same physics, events, rewards)."""
+
+    data: mujoco.MjData
+    """A private copy of the simulator state (every field: sleeping keys, sensor history)."""
+    step: int
+    active: np.ndarray
+    sustain: bool
+    pending_events: np.ndarray
+    key_state: np.ndarray
+    key_qpos_after_step: np.ndarray
+    warnings_seen: int
 
 
 class PianoEnv(gym.Env):
@@ -393,6 +411,48 @@ class PianoEnv(gym.Env):
             ),
         }
         return self._observation(), float(reward), terminated, truncated, info
+
+    def snapshot(self) -> EnvState:
+        """The episode's state now (a copy: later steps do not change it)."""
+        data = mujoco.MjData(self.model)
+        mujoco.mj_copyData(data, self.model, self.data)
+        return EnvState(
+            data=data,
+            step=self._t,
+            active=self._active.copy(),
+            sustain=self._sustain,
+            pending_events=self._pending_events.copy(),
+            key_state=self._key_state.copy(),
+            key_qpos_after_step=self._key_qpos_after_step.copy(),
+            warnings_seen=self._warnings_seen,
+        )
+
+    def restore(self, state: EnvState) -> None:
+        """Continue from a :meth:`snapshot` of this environment or of one :meth:`fork` ed from
+        it (the same model): the next step is the one that followed the snapshot."""
+        if state.data.qpos.shape != self.data.qpos.shape or state.step > self.goal.num_frames:
+            raise ValueError("the snapshot is of another environment")
+        mujoco.mj_copyData(self.data, self.model, state.data)
+        self._t = state.step
+        self._active = state.active.copy()
+        self._sustain = state.sustain
+        self._pending_events = state.pending_events.copy()
+        self._key_state = state.key_state.copy()
+        self._key_qpos_after_step = state.key_qpos_after_step.copy()
+        self._warnings_seen = state.warnings_seen
+
+    def fork(self) -> PianoEnv:
+        """A second environment of the same song and configuration in this one's state, for
+        looking ahead: stepping it leaves this one untouched. It shares the model, scene and
+        goal (read only) and has its own simulator state; it does not render."""
+        other = copy.copy(self)
+        other.data = mujoco.MjData(self.model)
+        other._substep_active = np.zeros_like(self._substep_active)
+        other._renderer = None
+        other.render_mode = None
+        other._np_random = copy.deepcopy(self._np_random)
+        other.restore(self.snapshot())
+        return other
 
     def render(self) -> np.ndarray | None:
         if self.render_mode != "rgb_array":
