@@ -159,14 +159,17 @@ class PlannerConfig:
     dips onto the keys on its way."""
 
     # ---- Plan choice (controller.py): frame by frame or the whole piece, whose fingering.
-    hand_planning: Literal["frame", "piece", "best"] = "best"
+    hand_planning: Literal["frame", "piece", "split", "best"] = "best"
     """How the hand positions are planned: ``frame`` by frame with the song's fingering,
     staying put within ``lazy_m``; over the whole ``piece``
-    (:mod:`pianist.control.hand_plan`) with the fingering ``refinger`` says; or the ``best``
-    of the frame-by-frame plan, the whole-piece plan with the song's fingering and the
-    whole-piece plan with its own, in that order of preference: a plan is chosen over the
-    ones before it only if it leaves at least ``piece_plan_margin`` more of the song's
-    key-frames playable (wide chords, jumps, a fingering the Shadow hand cannot span)."""
+    (:mod:`pianist.control.hand_plan`) with the fingering ``refinger`` says; over the whole
+    piece after a joint plan of both hands has ``split`` the keys between them anew
+    (:mod:`pianist.control.hand_split`; open-etude-12 0.766 against 0.767 for ``best``, and
+    planning 4x slower, so not among the candidates of ``best``); or the ``best`` of the
+    frame-by-frame plan, the whole-piece plan with the song's fingering and the whole-piece
+    plan with its own, in that order of preference: a plan is chosen over the ones before it
+    only if it leaves at least ``piece_plan_margin`` more of the song's key-frames playable
+    (wide chords, jumps, a fingering the Shadow hand cannot span)."""
     piece_plan_margin: float = 0.02
     """Share of the song's key-frames a later plan must add to be chosen (see above)."""
     playable_tolerance_m: float = 0.005
@@ -203,6 +206,9 @@ class PlannerConfig:
     """Added for a finger that has pressed its key for ``unsounded_steps`` without sounding
     it: resting on the key's top, too weak to push it down (the little finger above all)."""
     unsounded_steps: int = 2
+    unsounded_latch: bool = True
+    """Keep the push for the rest of the key's press once given (the key sounds only in the
+    last 0.5 degrees of its travel: a finger easing off lets it flicker)."""
 
 
 #: Environment options the planner plays best with: the forearm's height slide added. In the

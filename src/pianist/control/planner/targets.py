@@ -119,7 +119,14 @@ class FingerTargets:
         # for it, on the top of the key: the IK pushes such a finger harder).
         again = self.pressing & (pressed_key == self.last_key)
         sounding = key_down[np.maximum(pressed_key, 0)] & (pressed_key >= 0)
+        # Once pushed harder, a finger keeps that push while it holds the key: the key's
+        # sounding band is the last 0.5 degrees of its travel, and a finger that eased off
+        # as soon as the key sounded would let it flicker in and out of it.
+        latched = again & (self.unsounded >= cfg.unsounded_steps) & cfg.unsounded_latch
         self.unsounded = np.where(again & ~sounding, self.unsounded + 1, 0)
+        self.unsounded = np.where(
+            latched, np.maximum(self.unsounded, cfg.unsounded_steps), self.unsounded
+        )
         # A finger keeps its last key while it presses or hovers on its way to the next one.
         self.last_key = np.where(self.pressing, pressed_key, np.where(hovering, self.last_key, -1))
         # Count the steps each hovering finger has stood still.
