@@ -229,6 +229,29 @@ def _monotone_matching(can: np.ndarray, value: np.ndarray) -> tuple[np.ndarray, 
     return best, took
 
 
+def key_prefix_values(
+    ids: np.ndarray,
+    weights: np.ndarray,
+    key_y: np.ndarray,
+    black: np.ndarray,
+    full_reach: np.ndarray,
+    reach: np.ndarray,
+    positions: np.ndarray,
+    edge_cost: float,
+    direction: str,
+) -> np.ndarray:
+    """(n + 1, P) the most one hand makes, from each of P positions, of the lowest
+    (``direction="up"``) or highest (``"down"``) s of a frame's n keys (ascending y, with
+    their ``weights`` (n,)): the best order-keeping assignment of those keys to fingers that
+    reach them, each worth its weight (less ``edge_cost`` at the edge of a finger's reach)."""
+    order = finger_order(full_reach)
+    if direction == "down":
+        ids, weights, order = ids[::-1], weights[::-1], order[::-1]
+    can, value = _frame_pairs(ids, key_y, black, full_reach, reach, order, positions, edge_cost)
+    best, _ = _monotone_matching(can, value * weights[:, None, None])
+    return best[:, -1, :]
+
+
 def _frame_pairs(
     key_ids: np.ndarray,
     key_y: np.ndarray,

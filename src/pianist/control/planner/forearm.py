@@ -123,18 +123,22 @@ class ForearmPlan:
         refinger: bool,
         take: np.ndarray | None = None,
         extra_cost: Callable[[np.ndarray], np.ndarray] | None = None,
+        drop: np.ndarray | None = None,
     ) -> None:
         """The forearm slide position at every frame from the whole-piece plan
         (:func:`pianist.control.hand_plan.plan_hand`), with its ``busy``, ``skip`` and
         ``key_fingers`` (T, 88), this hand's finger 0-4 of each due key (-1: none).
 
         ``take``: (T, 88) further keys (the other hand's) to play if the plan can
-        (``refinger`` only); ``extra_cost``: see :func:`plan_hand`.
+        (``refinger`` only); ``drop``: (T, 88) keys of this hand the other plays (left out
+        here); ``extra_cost``: see :func:`plan_hand`.
         """
         local = goal.fingers - self.finger_offset
         local = np.where((local >= 0) & (local < FINGERS_PER_HAND), local, -1)
         if take is not None:
             local = np.where(take & (local < 0), 0, local)  # any finger: the plan chooses
+        if drop is not None:
+            local = np.where(drop, -1, local)
         plan = plan_hand(
             goal.keys,
             local,
