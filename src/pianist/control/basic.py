@@ -133,12 +133,17 @@ def _recorded_env_options(metrics_path: Path) -> dict[str, Any]:
 
 
 def make_controller(spec: str, **kwargs: Any) -> Controller:
-    """A controller from its name: ``planner``, ``mpc[:SPEC]``, ``random``, ``zero`` or
-    ``replay:PATH.npy``."""
+    """A controller from its name: ``planner``, ``refine[:FIELD=VALUE,...]`` (the planner
+    refined by looking ahead, :mod:`pianist.control.refine`), ``mpc[:SPEC]``, ``random``,
+    ``zero`` or ``replay:PATH.npy``."""
     if spec == "planner":
         from pianist.control.planner import IKPlanner
 
         return IKPlanner()
+    if spec == "refine" or spec.startswith("refine:"):
+        from pianist.control.refine import Refiner, parse_refine_options
+
+        return Refiner(options=parse_refine_options(spec.partition(":")[2]))
     if spec == "mpc" or spec.startswith("mpc:"):
         from pianist.control.mpc import make_mpc
 
@@ -151,6 +156,7 @@ def make_controller(spec: str, **kwargs: Any) -> Controller:
     if spec.startswith("replay:"):
         return ReplayController(spec.removeprefix("replay:"))
     raise ValueError(
-        f"unknown controller {spec!r}; use planner, mpc[:PRESET,...], random, zero or "
+        f"unknown controller {spec!r}; use planner, refine[:FIELD=VALUE,...], "
+        "mpc[:PRESET,...], random, zero or "
         "replay:ACTIONS.npy"
     )

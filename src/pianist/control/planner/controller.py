@@ -22,11 +22,12 @@ import mujoco
 import numpy as np
 
 from pianist.control.base import BaseController
-from pianist.control.planner.config import ENV_OPTIONS, PlannerConfig
+from pianist.control.hand_split import HandReach, SplitCosts, split_hands
+from pianist.control.planner.config import ENV_OPTIONS, FINGERS_PER_HAND, PlannerConfig
 from pianist.control.planner.forearm import _keep_forearms_apart
 from pianist.control.planner.hand import Hand
 from pianist.control.planner.postures import _use_postures
-from pianist.env.handle import control_handle
+from pianist.env.handle import ControlHandle, control_handle
 from pianist.sim import constants as C
 from pianist.sim.scene import SceneOptions
 
@@ -34,6 +35,8 @@ if TYPE_CHECKING:
     from pianist.music import Song
 
 #: A hand's plan for a song: what ``IKPlanner._plan`` sets (read only once made).
+#: What a hand remembers between steps (see :class:`FingerTargets`).
+_MEMORY = ("pressing", "stuck", "last_tips", "last_key", "unsounded")
 _PLAN_ARRAYS = ("tx_plan", "busy", "skip", "free", "shift_to", "tx_path", "tx_servo")
 #: Plans by (goal frames, scene options, config): a new episode of the same environment
 #: reuses its plan (up to ~1 s for a minute of music) instead of making it again.
@@ -109,7 +112,10 @@ class IKPlanner(BaseController):
             chosen = next(plan for n, plan in plans if n >= enough)
             self._restore(chosen)
         else:
-            self.plan_kind = (cfg.hand_planning, cfg.refinger and cfg.hand_planning == "piece")
+            refinger = cfg.hand_planning == "split" or (
+                cfg.refinger and cfg.hand_planning == "piece"
+            )
+            self.plan_kind = (cfg.hand_planning, refinger)
             self._plan(goal, *self.plan_kind)
             chosen = self._snapshot(self.plan_kind)
         if len(_PLANS) >= _PLANS_KEPT:
@@ -156,10 +162,12 @@ class IKPlanner(BaseController):
         over the whole "piece"; ``refinger``: the piece plan chooses the fingers); returns the
         key-frames the plan leaves playable."""
         cfg = self.config
-        piece = kind == "piece"
+        piece = kind in ("piece", "split")
         # The finger (0-9) that presses each due key: the song's, or the plan's.
         self.fingers = goal.fingers.copy()
-        if piece:
+        if kind == "split" and len(self.hands) == 2:
+            self._plan_split(goal)
+        elif piece:
             self._plan_piece(goal, refinger)
         else:
             for hand in self.hands:
@@ -207,7 +215,78 @@ class IKPlanner(BaseController):
             self.fingers[mine] = hand.key_fingers[mine] + hand.finger_offset
             hand.skip = goal.keys & ~(hand.key_fingers >= 0) & hand.own_keys(goal)
 
+    def _plan_split(self, goal) -> None:
+        """Both hands' whole-piece plans for the keys the joint plan gives each
+        (:func:`pianist.control.hand_split.split_hands`), with the plan's fingering: the
+        right hand first, then the left clear of it, then the right again clear of the
+        left."""
+        cfg = self.config
+        right, left = sorted(self.hands, key=lambda h: h.side != "right")
+        song_hand = np.where(goal.keys, np.where(goal.fingers < FINGERS_PER_HAND, 0, 1), -1)
+        right_reach, left_reach = (
+            HandReach(h.full_reach, h.reach, h.root_y, (float(h.tx_range[0]), float(h.tx_range[1])))
+            for h in (right, left)
+        )
+        costs = SplitCosts(
+            separation_m=cfg.forearm_separation_m,
+            clearance_cost=cfg.clearance_cost,
+            hand=cfg.hand_plan,
+        )
+        split = split_hands(
+            goal.keys,
+            song_hand,
+            self.key_point[:, 1],
+            C.BLACK_KEY_MASK,
+            right_reach,
+            left_reach,
+            self.dt,
+            costs,
+        )
+        plan = partial(
+            Hand.plan_piece,
+            goal=goal,
+            key_point=self.key_point,
+            dt=self.dt,
+            costs=cfg.hand_plan,
+            refinger=True,
+        )
+        mine = {right.side: split == 0, left.side: split == 1}
+        order = ((right, None), (left, right), (right, left))
+        for hand, other in order:
+            plan(
+                hand,
+                take=mine[hand.side],
+                drop=goal.keys & ~mine[hand.side],
+                extra_cost=None if other is None else other.clearance(hand, cfg),
+            )
+        for hand in self.hands:
+            played = hand.key_fingers >= 0
+            self.fingers[played] = hand.key_fingers[played] + hand.finger_offset
+            hand.skip = goal.keys & ~played & hand.own_keys(goal)
+
     # ----------------------------------------------------------------------------- acting
+
+    # ----------------------------------------------------------------------------- look-ahead
+    # What :class:`pianist.control.refine.Refiner` needs to run this planner ahead on a fork
+    # of the environment and bring it back.
+
+    def memory(self) -> list[dict[str, np.ndarray]]:
+        """A copy of what the planner remembers between steps (per hand, per finger)."""
+        return [{name: getattr(hand, name).copy() for name in _MEMORY} for hand in self.hands]
+
+    def set_memory(self, memory: list[dict[str, np.ndarray]]) -> None:
+        """Go back to a :meth:`memory` copy."""
+        for hand, arrays in zip(self.hands, memory, strict=True):
+            for name, value in arrays.items():
+                setattr(hand, name, value.copy())
+
+    def attach(self, handle: ControlHandle) -> None:
+        """Act on another environment of the same song and scene from now on (a fork)."""
+        self.handle = handle
+
+    def finger_action_dims(self) -> np.ndarray:
+        """(F,) the action dimensions of every finger joint (not the forearms or wrists)."""
+        return np.concatenate([hand.finger_actuators for hand in self.hands])
 
     def act(self, observation: object = None) -> np.ndarray:
         cfg, handle, m, scratch = self.config, self.handle, self.model, self.scratch

@@ -1,0 +1,161 @@
+"""Refinement with the physics: the planner's actions, improved by looking ahead.
+
+At every step the planner (:class:`pianist.control.planner.IKPlanner`) proposes its action.
+The refiner then tries ``candidates`` random perturbations of the fingers' part of it, each
+held for ``horizon_steps`` steps while the planner goes on acting in closed loop, on a fork
+of the environment restored to the current state for every candidate (the full physics:
+:meth:`pianist.env.PianoEnv.fork` and :meth:`~pianist.env.PianoEnv.restore`). It plays the
+proposal plus the perturbation whose look-ahead left the fewest due keys unsounded and
+sounded the fewest others. The unperturbed proposal is candidate 0 and wins ties, so where
+looking ahead finds nothing better the planner plays as it would alone.
+
+This is predictive sampling (the paper's MPC baseline) around the planner instead of around
+a spline: the planner supplies the motion, the samples only correct what the physics does to
+it (a finger that slides off, a key that flickers at the bottom of its travel, a late strike).
+It costs ``(candidates + 1) * horizon_steps`` simulated steps per step.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from dataclasses import asdict, dataclass
+from typing import TYPE_CHECKING, Any
+
+import gymnasium as gym
+import numpy as np
+
+from pianist.control.base import BaseController
+from pianist.env.handle import control_handle
+
+if TYPE_CHECKING:
+    from pianist.control.planner import IKPlanner
+    from pianist.env.piano_env import EnvState
+    from pianist.music import Song
+
+
+@dataclass(frozen=True)
+class RefineOptions:
+    """How much the refiner looks ahead (see the module docstring)."""
+
+    candidates: int = 8
+    """Perturbed actions tried per step, besides the planner's own."""
+    horizon_steps: int = 4
+    """Steps each candidate is looked ahead (0.2 s at 20 Hz)."""
+    sigma: float = 0.15
+    """Standard deviation of each finger joint's perturbation, in action units ([-1, 1] spans
+    the joint's range)."""
+    wrong_weight: float = 1.0
+    """Cost of a key sounded that is not due, against 1 for a due key not sounded."""
+
+    def __post_init__(self) -> None:
+        if self.candidates < 0 or self.horizon_steps < 1 or not self.sigma >= 0:
+            raise ValueError(
+                "refine needs candidates >= 0, horizon_steps >= 1 and sigma >= 0, not "
+                f"{self.candidates}, {self.horizon_steps}, {self.sigma}"
+            )
+
+
+def parse_refine_options(spec: str) -> RefineOptions:
+    """Options from ``"candidates=16,horizon_steps=6"`` (any :class:`RefineOptions` field;
+    empty: the defaults)."""
+    fields = {f.name: f.type for f in dataclasses.fields(RefineOptions)}
+    values: dict[str, Any] = {}
+    for item in filter(None, spec.split(",")):
+        name, _, text = item.partition("=")
+        name = name.strip()
+        if name not in fields:
+            raise ValueError(f"unknown refine option {name!r}; use {', '.join(fields)}")
+        kind = int if fields[name] in (int, "int") else float
+        try:
+            values[name] = kind(text)
+        except ValueError:
+            raise ValueError(f"refine option {name} needs a number, not {text!r}") from None
+    return RefineOptions(**values)
+
+
+class Refiner(BaseController):
+    """The planner, each action refined by looking ahead with the physics."""
+
+    def __init__(self, planner: IKPlanner | None = None, options: RefineOptions | None = None):
+        if planner is None:
+            from pianist.control.planner import IKPlanner
+
+            planner = IKPlanner()
+        self.planner = planner
+        self.options = options or RefineOptions()
+
+    def env_options(self, song: Song | None = None) -> dict[str, Any]:
+        return self.planner.env_options(song)
+
+    def reset(self, env: gym.Env, seed: int | None = None) -> None:
+        self.planner.reset(env, seed)
+        self.handle = control_handle(env)
+        self.ahead = self.handle.fork()
+        self.ahead_handle = control_handle(self.ahead)
+        self.rng = np.random.default_rng(0 if seed is None else seed)
+        self.dims = self.planner.finger_action_dims()
+        self._steps = self._refined = 0
+        self._seconds = 0.0
+
+    def act(self, observation: Any = None) -> np.ndarray:
+        proposal = self.planner.act(observation)
+        o = self.options
+        if o.candidates == 0:
+            return proposal
+        start = time.perf_counter()
+        memory = self.planner.memory()
+        state = self.handle.snapshot()
+        offsets = np.zeros((o.candidates + 1, proposal.shape[0]), dtype=np.float32)
+        offsets[1:, self.dims] = self.rng.normal(0.0, o.sigma, (o.candidates, self.dims.size))
+        costs = [self._look_ahead(proposal, offset, state, memory) for offset in offsets]
+        # Back to the real episode, the planner as it was after proposing.
+        self.planner.attach(self.handle)
+        self.planner.set_memory(memory)
+        best = int(np.argmin(costs))  # the first of equals: the proposal wins ties
+        self._steps += 1
+        self._refined += best > 0
+        self._seconds += time.perf_counter() - start
+        return np.clip(proposal + offsets[best], -1.0, 1.0)
+
+    def _look_ahead(
+        self,
+        proposal: np.ndarray,
+        offset: np.ndarray,
+        state: EnvState,
+        memory: list[dict[str, np.ndarray]],
+    ) -> float:
+        """Missed and wrong keys over the horizon when ``offset`` is added to the planner's
+        actions, from ``state`` with the planner's ``memory``."""
+        o = self.options
+        self.ahead.restore(state)
+        self.planner.attach(self.ahead_handle)
+        self.planner.set_memory(memory)
+        goal = self.handle.goal.keys
+        cost = 0.0
+        action = proposal
+        for j in range(o.horizon_steps):
+            t = state.step + j
+            if t >= goal.shape[0]:
+                break
+            if j:
+                action = self.planner.act(None)
+            _, _, terminated, _, info = self.ahead.step(np.clip(action + offset, -1.0, 1.0))
+            active, due = info["active_keys"], goal[t]
+            cost += float(np.sum(due & ~active) + o.wrong_weight * np.sum(active & ~due))
+            if terminated:
+                break
+        return cost
+
+    def stats(self) -> dict[str, float]:
+        steps = max(self._steps, 1)
+        return {
+            "refined_share": self._refined / steps,
+            "refine_seconds_per_step": self._seconds / steps,
+        }
+
+    def plan_arrays(self) -> dict[str, np.ndarray]:
+        return self.planner.plan_arrays()
+
+    def options_dict(self) -> dict[str, Any]:
+        return {"refine": asdict(self.options)}
