@@ -182,6 +182,8 @@ def test_play_sweep_writes_a_row_per_cell_reports_a_failed_cell_and_skips_finish
     summary = json.loads((out / SUMMARY_JSON).read_text())
     by_key = {(g["suite"], g["variant"]): g for g in summary}
     assert by_key[("debug", "zero")]["ok"] == 1 and by_key[("songs", "random")]["failed"] == 1
+    assert by_key[("songs", "random")]["songs"][0]["failed"] is True
+    assert by_key[("debug", "zero")]["songs"][0]["failed"] is False
     zero = [float(r["f1"]) for r in ok if r["variant"] == "zero"]
     assert by_key[("debug", "zero")]["mean_f1"] == pytest.approx(sum(zero) / len(zero))
     assert (out / SUMMARY_PNG).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

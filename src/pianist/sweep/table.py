@@ -11,7 +11,8 @@ written into the sweep's folder (each atomically):
 - ``summary.json``: per suite and variant (and physics preset): mean F1 over the finished
   cells, how many finished and failed, and each song's mean F1 over the seeds;
 - ``summary.png``: per suite, a bar per song and variant (the mean F1 over seeds; a line
-  from the lowest to the highest seed's F1), as in the paper's per-song figure.
+  from the lowest to the highest seed's F1; a red cross where a cell failed), as in the
+  paper's per-song figure.
 """
 
 from __future__ import annotations
@@ -111,7 +112,8 @@ def summarize(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
         A list of groups: ``suite``, ``variant``, ``physics``, ``mean_f1`` (the mean over the
         group's finished cells, None if none), ``ok``, ``failed``, ``missing`` (cell counts)
         and ``songs``: per song, in order, ``mean_f1``, ``min_f1``, ``max_f1`` over its seeds
-        (None where no seed finished) and ``seeds`` (how many finished).
+        (None where no seed finished), ``seeds`` (how many finished) and ``failed`` (whether a
+        seed failed).
     """
     groups: dict[tuple[Any, ...], dict[str, Any]] = {}
     for row in rows:
@@ -127,17 +129,21 @@ def summarize(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
                 "failed": 0,
                 "missing": 0,
                 "songs": {},
+                "failed_songs": set(),
             },
         )
         scores = group["songs"].setdefault(row["song"], [])
         status = row["status"]
         group[status if status in (OK, FAILED) else "missing"] += 1
+        if status == FAILED:
+            group["failed_songs"].add(row["song"])
         f1 = row.get("f1")
         if status == OK and isinstance(f1, int | float) and math.isfinite(f1):
             group["f1"].append(float(f1))
             scores.append(float(f1))
     summary = []
     for group in groups.values():
+        failed_songs = group.pop("failed_songs")
         songs = [
             {
                 "song": song,
@@ -145,6 +151,7 @@ def summarize(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
                 "min_f1": min(scores) if scores else None,
                 "max_f1": max(scores) if scores else None,
                 "seeds": len(scores),
+                "failed": song in failed_songs,
             }
             for song, scores in group.pop("songs").items()
         ]
@@ -184,9 +191,11 @@ def plot_summary(summary: Sequence[dict[str, Any]], path: str | Path) -> None:
         bar_w = 0.8 / max(1, len(groups))
         for index, group in enumerate(groups):
             by_song = {s["song"]: s for s in group["songs"]}
-            xs, heights, low, high = [], [], [], []
+            xs, heights, low, high, failed = [], [], [], [], []
             for x, song in enumerate(songs):
                 entry = by_song.get(song)
+                if entry is not None and entry["failed"]:
+                    failed.append(x - 0.4 + bar_w * (index + 0.5))
                 if entry is None or entry["mean_f1"] is None:
                     continue
                 xs.append(x - 0.4 + bar_w * (index + 0.5))
@@ -202,6 +211,8 @@ def plot_summary(summary: Sequence[dict[str, Any]], path: str | Path) -> None:
                 yerr=[low, high] if spread else None,
                 capsize=2 if spread else 0,
             )
+            # A failed cell: a red cross at the foot of its song's bar.
+            ax.plot(failed, [0.02] * len(failed), "x", color="#d62728", markersize=7)
         ax.set_xticks(range(len(songs)))
         ax.set_xticklabels([Path(s).stem if "/" in s else s for s in songs], rotation=35)
         for label in ax.get_xticklabels():
