@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from pianist.control import make_controller
-from pianist.control.planner import ENV_OPTIONS, IKPlanner, PlannerConfig
+from pianist.control.planner import ENV_OPTIONS, FingerState, IKPlanner, PlannerConfig
 from pianist.env import PianoEnv
 from pianist.eval import run_episode
 from pianist.eval.session import make_env
@@ -448,3 +448,40 @@ def test_the_plan_is_returned_as_arrays_that_cover_the_played_keys():
     low, high = plan["hand_key_span"][frames, hand].T
     inside = (keys >= low - 0.5) & (keys <= high + 0.5)
     assert inside.mean() > 0.95, inside.mean()
+
+
+def test_each_finger_goes_through_named_states_as_it_plays():
+    # Four repeated quarter notes with the middle finger: it hovers before the first, presses
+    # each note, is let up between them to strike again, and is lifted after the last.
+    notes = tuple(Note(64, 0.5 + 0.5 * i, 1.0 + 0.5 * i, finger=2) for i in range(4))
+    planner = IKPlanner()
+    env = PianoEnv(Song(notes, name="repeats"), physics="fast", **ENV_OPTIONS)
+    episode = run_episode(env, planner, seed=0)
+    states = planner.plan_arrays()["finger_states"]
+    assert states.shape == (env.num_steps, 10)
+    middle = states[:, 2]
+    key = 64 - 21  # E4: keys are numbered from A0, MIDI pitch 21
+    due = env.goal.keys[:, key]
+    assert set(np.unique(middle[due])) <= {FingerState.PRESSING, FingerState.PUSHING}
+    assert (middle == FingerState.RESTRIKING).sum() == 3  # once before each repeat
+    assert FingerState.HOVERING in middle[: np.argmax(due)]
+    assert middle[0] == FingerState.LIFTED  # far from its first note
+    others = np.delete(states, 2, axis=1)
+    assert not np.isin(others, [FingerState.PRESSING, FingerState.PUSHING]).any()
+    # What the states say is what the keys did: the key is down in the steps it is pressed.
+    pressed = np.isin(middle, [FingerState.PRESSING, FingerState.PUSHING])
+    assert episode.active_keys[pressed, key].mean() > 0.8
+
+
+def test_fingers_travel_during_a_jump():
+    # Two notes 40 cm apart with the index finger and no time between them: a shift.
+    notes = (Note(48, 0.3, 0.8, finger=1), Note(72, 0.8, 1.5, finger=1))
+    planner = IKPlanner()
+    env = PianoEnv(Song(notes, name="jump"), physics="fast", **ENV_OPTIONS)
+    run_episode(env, planner, seed=0)
+    states = planner.plan_arrays()["finger_states"][:, :5]
+    right = next(hand for hand in planner.hands if hand.side == "right")
+    shifting = np.flatnonzero(right.free)
+    assert shifting.size > 0
+    assert np.all(states[shifting] != FingerState.PRESSING)
+    assert (states[shifting, 1] == FingerState.TRAVELLING).any()

@@ -14,9 +14,11 @@ each control step it
    travel just above the next ones; with the optional height slide (``tz``) the forearm is
    held low enough for the thumb to reach a key's bottom, pushed down harder when the keys
    lift it;
-2. gives every fingertip a target: the assigned fingertip pressed below the top of each key
-   due at the coming frame (once it is over the key), fingers due soon hovering above their
-   keys, the others lifted to a fixed posture clear of the keyboard;
+2. gives every fingertip a target from the finger's state in that step
+   (:class:`~pianist.control.planner.targets.FingerState`: lifted, hovering, pressing,
+   pushing, re-striking, travelling): the assigned fingertip pressed below the top of each
+   key due at the coming frame (once it is over the key), fingers due soon hovering above
+   their keys, the others lifted to a fixed posture clear of the keyboard;
 3. solves each finger's inverse kinematics with the wrist held still, so the five fingers are
    independent small problems: the nearest of a few thousand sampled postures of that finger
    (computed once at reset, which avoids the local minima the thumb falls into), then a few
@@ -41,5 +43,6 @@ The stages, one module each (read in this order):
 
 from pianist.control.planner.config import ENV_OPTIONS, PlannerConfig
 from pianist.control.planner.controller import IKPlanner
+from pianist.control.planner.targets import FingerState
 
-__all__ = ["ENV_OPTIONS", "IKPlanner", "PlannerConfig"]
+__all__ = ["ENV_OPTIONS", "FingerState", "IKPlanner", "PlannerConfig"]

@@ -95,6 +95,8 @@ class IKPlanner(BaseController):
             - C.KEY_ACTIVATION_THRESHOLD_RAD
         )
         self.hands = [Hand(m, hand) for hand in handle.scene.hands]
+        # (T, 10) each finger's FingerState per step, as played (see plan_arrays).
+        self.finger_states = np.zeros((goal.num_frames, 2 * FINGERS_PER_HAND), dtype=np.int8)
         _use_postures(m, self.scratch, self.hands, cfg, handle.scene.options)
         key = (id(goal), handle.scene.options, cfg)
         cached = _PLANS.get(key)
@@ -139,7 +141,11 @@ class IKPlanner(BaseController):
           between two keys' press points) the fingers of each hand (right first) reach from
           its planned forearm position;
         - ``hand_sides``: (H,) "right" / "left", the order of the hands above;
-        - ``planned_fingers``: (T, 88) the finger (0-9) the plan gives each due key, -1 none.
+        - ``planned_fingers``: (T, 88) the finger (0-9) the plan gives each due key, -1 none;
+        - ``finger_states``: (T, 10) int8, each finger's
+          :class:`~pianist.control.planner.targets.FingerState` at each step played so far
+          (0, lifted, for steps not played; a look-ahead's steps are overwritten by the real
+          ones, which always come later).
         """
         key_y = self.key_point[:, 1]
         order = np.argsort(key_y)
@@ -155,6 +161,7 @@ class IKPlanner(BaseController):
             "hand_key_span": np.stack(spans, axis=1),
             "hand_sides": np.array([hand.side for hand in hands]),
             "planned_fingers": planned,
+            "finger_states": self.finger_states.copy(),
         }
 
     def _plan(self, goal, kind: str, refinger: bool) -> int:
@@ -305,6 +312,7 @@ class IKPlanner(BaseController):
         mujoco.mj_kinematics(m, scratch)
         for hand in self.hands:
             targets, active = hand.fingertip_targets(self, t, hover_end)
+            self.finger_states[t, hand.finger_offset : hand.finger_offset + 5] = hand.state
             hand.solve(m, scratch, targets, active, cfg)
             ctrl[hand.finger_actuators] = hand.finger_controls(scratch)
         action = np.empty(m.nu + 1)

@@ -12,10 +12,31 @@ fingers have a target (the IK starts the others from their lifted posture).
 
 from __future__ import annotations
 
+from enum import IntEnum
+
 import numpy as np
 
 from pianist.control.planner.config import FINGERS_PER_HAND, PlannerState
 from pianist.sim import constants as C
+
+
+class FingerState(IntEnum):
+    """What a finger does in a step, as :meth:`FingerTargets.fingertip_targets` decides it
+    (recorded per step in :meth:`IKPlanner.plan_arrays` as ``finger_states``)."""
+
+    LIFTED = 0
+    """No key due soon: the lifted posture (``lift_tips``)."""
+    HOVERING = 1
+    """Over a key due later, or due now but not lined up with it yet (``hover_height_m``,
+    ``transfer_height_m`` coming from another key)."""
+    PRESSING = 2
+    """Sent ``key_depth`` below its key's top, so the servo holds the key down."""
+    PUSHING = 3
+    """Pressing, and pushed further down: the key has not sounded for ``unsounded_steps``."""
+    RESTRIKING = 4
+    """Its key is still down and is due again: let up first (``release_height_m``)."""
+    TRAVELLING = 5
+    """The hand is shifting: over the key it moves for, or lifted clear for a long jump."""
 
 
 class FingerTargets:
@@ -36,6 +57,8 @@ class FingerTargets:
     last_tips: np.ndarray
     last_key: np.ndarray
     unsounded: np.ndarray
+    state: np.ndarray
+    """(5,) the :class:`FingerState` of each finger this step."""
 
     def fingertip_targets(
         self, planner: PlannerState, now: int, hover_end: int
@@ -54,6 +77,7 @@ class FingerTargets:
         targets = self.lift_tips + origin
         active = np.zeros(FINGERS_PER_HAND, dtype=bool)
         self.pressing = np.zeros(FINGERS_PER_HAND, dtype=bool)
+        self.state = np.full(FINGERS_PER_HAND, FingerState.LIFTED, dtype=np.int8)
         if self.free[now]:
             self.last_key[:] = -1
         if self.free[now] and cfg.hover_in_shift:
@@ -63,6 +87,7 @@ class FingerTargets:
             # A finger still on the keys with far to go comes up first (``jump_lift_m``).
             low = real_tips[:, 2] < C.WHITE_KEY_HEIGHT_M + radius + cfg.jump_low_m
             far = active & low & (np.abs(targets[:, 1] - real_tips[:, 1]) > cfg.jump_lift_m)
+            self.state[active] = FingerState.TRAVELLING
             active[far] = False
             targets[far] = self.lift_tips[far] + origin
             return targets - origin, active
@@ -81,10 +106,12 @@ class FingerTargets:
                 active[finger] = True
                 if frame != now and key_down[key]:
                     targets[finger, 2] = top + cfg.release_height_m  # re-strike: up first
+                    self.state[finger] = FingerState.RESTRIKING
                     continue
                 if self.free[frame]:
                     # The hand is moving: its fingers stay clear, or they catch on keys.
                     targets[finger] = self.lift_tips[finger] + origin
+                    self.state[finger] = FingerState.TRAVELLING
                     continue
                 black = C.BLACK_KEY_MASK[key]
                 tolerance = cfg.black_align_tolerance_m if black else cfg.align_tolerance_m
@@ -109,12 +136,14 @@ class FingerTargets:
                     extra = cfg.thumb_extra_depth_m if finger == 0 else 0.0
                     targets[finger, 2] = top - planner.key_depth[key] - extra
                     self.pressing[finger] = True
+                    self.state[finger] = FingerState.PRESSING
                     pressed_key[finger] = key
                 else:
                     transfer = self.last_key[finger] >= 0 and self.last_key[finger] != key
                     height = cfg.transfer_height_m if transfer else cfg.hover_height_m
                     targets[finger, 2] = top + height
                     hovering[finger] = True
+                    self.state[finger] = FingerState.HOVERING
         # Steps each finger has pressed the same key without it sounding (a finger too weak
         # for it, on the top of the key: the IK pushes such a finger harder).
         again = self.pressing & (pressed_key == self.last_key)
@@ -127,6 +156,8 @@ class FingerTargets:
         self.unsounded = np.where(
             latched, np.maximum(self.unsounded, cfg.unsounded_steps), self.unsounded
         )
+        pushed = self.pressing & (self.unsounded >= cfg.unsounded_steps)  # see ik.py
+        self.state[pushed] = FingerState.PUSHING
         # A finger keeps its last key while it presses or hovers on its way to the next one.
         self.last_key = np.where(self.pressing, pressed_key, np.where(hovering, self.last_key, -1))
         # Count the steps each hovering finger has stood still.
@@ -137,6 +168,7 @@ class FingerTargets:
             if self.free[t] and cfg.hover_stops_at_shift:
                 break  # keys past a shift are out of reach from here
             self._hover_over(planner, t, targets, active)
+        self.state[active & (self.state == FingerState.LIFTED)] = FingerState.HOVERING
         return targets - origin, active
 
     def _hover_over(
