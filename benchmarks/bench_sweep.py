@@ -1,7 +1,8 @@
 """Sweeps on Ray: 1 against 2 workers, a worker killed mid-sweep, two Ray nodes.
 
 Three measurements, each a `play` sweep with the planner (``--controller``) on the debug
-suites (``--suites``, default ``debug,robopianist-debug``: 12 songs), physics ``--physics``:
+suites (``--suites``, default ``debug,robopianist-debug``: 12 songs), physics ``--physics``
+(default: the controller's own, faithful for the planner), seed 0:
 
 - scaling: the same sweep, into a fresh folder each, with a local Ray of 1 and of 2 workers;
   the time is the whole :func:`pianist.sweep.run_sweep` call (Ray's start and stop included),
@@ -17,7 +18,7 @@ F1 of every run must agree across the three (the planner is deterministic). The 
 average before each run is printed: other processes on the cores skew the scaling ratio.
 
 Run: ``python benchmarks/bench_sweep.py [--suites debug,robopianist-debug] [--controller planner]
-[--physics fast] [--skip kill,cluster] [--json docs/results/sweep.json]``.
+[--physics default|faithful|fast] [--skip kill,cluster] [--json docs/results/sweep.json]``.
 """
 
 from __future__ import annotations
@@ -74,7 +75,9 @@ def scaling(cells, root: Path, workers: int) -> dict:
 
 def _command(args, out: Path) -> list[str]:
     command = [sys.executable, "-m", "pianist.cli", "sweep", "--suite", *args.suites.split(",")]
-    command += ["--controllers", args.controller, "--physics", args.physics, "--out", str(out)]
+    command += ["--controllers", args.controller, "--out", str(out)]
+    if args.physics != "default":
+        command += ["--physics", args.physics]
     return command
 
 
@@ -155,12 +158,13 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--suites", default="debug,robopianist-debug")
     parser.add_argument("--controller", default="planner")
-    parser.add_argument("--physics", default="fast", choices=("faithful", "fast"))
+    parser.add_argument("--physics", default="default", choices=("default", "faithful", "fast"))
     parser.add_argument("--skip", default="", help="comma-separated: kill, cluster")
     parser.add_argument("--json", default=None, help="also write the results to this file")
     args = parser.parse_args()
     skip = set(filter(None, args.skip.split(",")))
-    cells = expand("play", songs_of(args.suites.split(",")), [args.controller], [args.physics], [0])
+    physics = None if args.physics == "default" else args.physics
+    cells = expand("play", songs_of(args.suites.split(",")), [args.controller], [physics], [0])
     results: dict = {
         "suites": args.suites,
         "controller": args.controller,

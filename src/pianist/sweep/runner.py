@@ -225,6 +225,10 @@ def _start_ray(workers: int, address: str | None) -> Any:
                 num_cpus=workers,
                 include_dashboard=False,
                 object_store_memory=OBJECT_STORE_BYTES,
+                # Cells are the work this command was asked for: its workers run at the
+                # command's own priority (Ray's default lowers them by 15, which starves
+                # them whenever anything else runs; `nice pianist sweep` still applies).
+                _system_config={"worker_niceness": 0},
                 **quiet,
             )
         finally:
