@@ -173,7 +173,7 @@ def test_a_run_replaces_the_previous_one_whole(tmp_path):
     assert _play_zero(out, "--no-audio") == 0
     # No file of the earlier run is left beside the new one's.
     names = sorted(p.name for p in out.iterdir())
-    assert names == ["actions.npy", "metrics.json", "performance.mid", "pianoroll.png"]
+    assert names == ["actions.npy", "keys.npz", "metrics.json", "performance.mid", "pianoroll.png"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]  # no temporary left
 
 

@@ -14,6 +14,7 @@ import tyro
 
 from pianist.cli.common import CliError
 from pianist.cli.play import Play
+from pianist.cli.report import Report
 from pianist.cli.songs import ImportPig, Info, Songs
 from pianist.cli.sweep import Sweep
 from pianist.cli.train import Eval, Train
@@ -25,6 +26,7 @@ Command = (
     Annotated[Songs, tyro.conf.subcommand("songs")]
     | Annotated[Info, tyro.conf.subcommand("info")]
     | Annotated[Play, tyro.conf.subcommand("play")]
+    | Annotated[Report, tyro.conf.subcommand("report")]
     | Annotated[ImportPig, tyro.conf.subcommand("import-pig")]
     | Annotated[Train, tyro.conf.subcommand("train")]
     | Annotated[Eval, tyro.conf.subcommand("eval")]

@@ -70,6 +70,9 @@ class Play:
     """An .sf2/.sf3 SoundFont for the audio."""
     audio: bool = True
     """Write performance.wav and score.wav."""
+    report: bool = False
+    """Also write report.html: a page with the metrics, piano roll, audio and video players,
+    the missed and wrong notes and the song's provenance (see `pianist report`)."""
 
     def run(self) -> None:
         if self.video and sys.platform.startswith("linux"):
@@ -110,6 +113,7 @@ class Play:
             size=self.size,
             soundfont=self.soundfont,
             progress=sys.stderr.isatty(),
+            report=self.report,
         )
         if self.video:  # the cameras are the scene's: build it once to check
             check_media_options(make_env(song, controller, physics=self.physics), media)

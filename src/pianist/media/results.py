@@ -19,6 +19,7 @@ from pianist.env.handle import control_handle
 from pianist.eval.session import PlayResult
 from pianist.files import atomic_dir, save_npy_atomic, write_json_atomic
 from pianist.media.errors import MediaError
+from pianist.media.report import KEY_RECORD, REPORT
 from pianist.music import write_midi
 from pianist.music.transforms import delay
 
@@ -41,6 +42,8 @@ RESULT_FILES = frozenset(
         SCORE_WAV,
         COMPARISON_WAV,
         VIDEO,
+        KEY_RECORD,
+        REPORT,
     }
 )
 
@@ -65,6 +68,9 @@ class MediaOptions:
     """An .sf2/.sf3 SoundFont (default: the General MIDI one pretty_midi ships)."""
     progress: bool = False
     """Show the video's progress bar on stderr."""
+    report: bool = False
+    """report.html, the page of :mod:`pianist.media.report` (the key record keys.npz it reads
+    is written always)."""
 
 
 def check_output_folder(out: str | os.PathLike[str]) -> None:
@@ -134,6 +140,7 @@ def write_result(
         MediaError: the folder cannot be written, or a medium fails.
     """
     from pianist.media.dynamics import episode_velocities, velocity_metrics, with_velocities
+    from pianist.media.report import key_record, write_key_record, write_report
 
     media = media or MediaOptions()
     out = Path(out)
@@ -152,6 +159,9 @@ def write_result(
         write_midi(performance, tmp / PERFORMANCE_MIDI)
         _write_media(result, tmp, media, title, velocities)
         write_json_atomic(metrics, tmp / METRICS)
+        write_key_record(key_record(result), tmp / KEY_RECORD)
+        if media.report:  # last: the page lists the folder's files
+            write_report([tmp], tmp / REPORT, title=out.name, shown_as=[out])
         names = sorted(p.name for p in tmp.iterdir())
     return [out / name for name in names]
 
