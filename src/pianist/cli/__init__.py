@@ -18,6 +18,7 @@ from pianist.cli.report import Report
 from pianist.cli.songs import ImportPig, Info, Songs
 from pianist.cli.sweep import Sweep
 from pianist.cli.train import Eval, Train
+from pianist.cli.view import View
 
 __all__ = ["CliError", "main"]
 
@@ -27,6 +28,7 @@ Command = (
     | Annotated[Info, tyro.conf.subcommand("info")]
     | Annotated[Play, tyro.conf.subcommand("play")]
     | Annotated[Report, tyro.conf.subcommand("report")]
+    | Annotated[View, tyro.conf.subcommand("view")]
     | Annotated[ImportPig, tyro.conf.subcommand("import-pig")]
     | Annotated[Train, tyro.conf.subcommand("train")]
     | Annotated[Eval, tyro.conf.subcommand("eval")]

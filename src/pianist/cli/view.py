@@ -1,0 +1,72 @@
+"""``pianist view``: watch a controller play a song in MuJoCo's interactive viewer."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Annotated, Literal
+
+import tyro
+
+from pianist.cli.common import CliError, SongArg
+from pianist.cli.common import make_controller_from_spec as _make_controller
+from pianist.cli.common import out as _out
+
+
+@dataclass(frozen=True)
+class View:
+    """Watch a song being played, in real time, in MuJoCo's viewer window: keys green when
+    played and due, red when played and not due, amber when due and silent. Closing the window
+    stops the song. Needs a display (on a machine without one: xvfb-run -a pianist view ...)."""
+
+    song: tyro.conf.Positional[SongArg]
+    """A built-in song name, a MIDI file (.mid) or a PIG fingering file (.txt)."""
+    controller: str = "planner"
+    """planner, mpc[:...], policy:RUN_DIR, random, zero or replay:ACTIONS.npy (as for `pianist
+    play`)."""
+    fingering: Literal["auto", "file", "robot", "none"] = "auto"
+    """How the song is fingered (as for `pianist play`)."""
+    physics: Annotated[
+        Literal["faithful", "fast"] | None,
+        tyro.conf.arg(help_behavior_hint="(default: faithful; a trained policy: its own)"),
+    ] = None
+    """Physics preset: faithful (the paper's simulation) or fast (cheaper contacts)."""
+    seed: int = 0
+    """Seed of the episode (environment and controller)."""
+    seconds: Annotated[
+        float | None, tyro.conf.arg(help_behavior_hint="(default: the whole song)")
+    ] = None
+    """Play only the song's first SECONDS."""
+    realtime: bool = True
+    """Pace the episode to the wall clock (--no-realtime: as fast as it plays)."""
+
+    def run(self) -> None:
+        from pianist.media.viewer import check_display
+
+        check_display()  # before anything slow: the one thing a headless machine lacks
+        if self.seconds is not None and not (math.isfinite(self.seconds) and self.seconds > 0):
+            raise CliError(f"--seconds must be > 0, not {self.seconds}")
+        from pianist.media.viewer import view
+        from pianist.music import load_song
+        from pianist.music.transforms import window
+
+        song = load_song(self.song, fingering=self.fingering)
+        if self.seconds is not None and self.seconds < song.duration_s:
+            song = window(song, 0.0, self.seconds)
+        controller = _make_controller(self.controller)
+        result, stats = view(
+            song,
+            controller,
+            realtime=self.realtime,
+            physics=self.physics,
+            fingering=self.fingering,
+            seed=self.seed,
+        )
+        metrics = result.metrics
+        stopped = "  window closed: scored up to there" if stats.closed else ""
+        _out(
+            f"{self.song}: precision {metrics['precision']:.3f}  recall {metrics['recall']:.3f}  "
+            f"F1 {metrics['f1']:.3f}  sustain F1 {metrics['sustain_f1']:.3f}  "
+            f"({metrics['steps']} steps, {stats.frames} viewer frames, {metrics['seconds']:.2f} s "
+            f"of music in {stats.wall_s:.2f} s){stopped}"
+        )
