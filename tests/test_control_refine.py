@@ -66,6 +66,9 @@ def test_refine_options_parse_and_refuse():
         parse_refine_options("samples=3")
     with pytest.raises(ValueError, match="needs a number"):
         parse_refine_options("candidates=many")
+    assert parse_refine_options("keep_previous=false").keep_previous is False
+    with pytest.raises(ValueError, match="needs true or false"):
+        parse_refine_options("keep_previous=maybe")
     with pytest.raises(ValueError, match="horizon_steps >= 1"):
         RefineOptions(horizon_steps=0)
     assert isinstance(make_controller("refine:candidates=2"), Refiner)

@@ -28,9 +28,14 @@ class Play:
     song: tyro.conf.Positional[SongArg]
     """A built-in song name, a MIDI file (.mid) or a PIG fingering file (.txt)."""
     controller: str = "planner"
-    """planner; mpc (the paper's predictive sampling; mpc:tenth, or e.g.
+    """planner; refine (the planner, each action refined by looking ahead with the physics, or
+    e.g. refine:candidates=16,horizon_steps=6,sigma=0.15; ~5x slower than real time); mpc (the
+    paper's predictive sampling; mpc:tenth, or e.g.
     mpc:paper,num_samples=20,sigma=0.1,horizon_s=0.3,num_knots=3,iterations=8); policy:RUN_DIR
     (a trained agent); random; zero; or replay:ACTIONS.npy."""
+    refine: bool = False
+    """Refine the planner's actions by looking ahead with the physics (the same as
+    --controller refine)."""
     fingering: Literal["auto", "file", "robot", "none"] = "auto"
     """auto: keep the song's fingering and estimate what is missing (hands from a MIDI's
     tracks when they say so); file: require the file's own; robot: re-finger every note for
@@ -95,14 +100,20 @@ class Play:
                 "--initial-buffer-s does not apply to a trained policy, which plays the task it "
                 "was trained on"
             )
+        spec = self.controller
+        if self.refine:
+            if spec not in ("planner", "refine") and not spec.startswith("refine:"):
+                raise CliError(f"--refine refines the planner, not --controller {spec}")
+            spec = "refine" if spec == "planner" else spec
         song = load_song(self.song, fingering=self.fingering)
-        if self.controller == "planner" and song.fingering_coverage < 1.0:
+        planner = spec == "planner" or spec.split(":")[0] == "refine"
+        if planner and song.fingering_coverage < 1.0:
             missing = sum(n.finger is None for n in song.notes)
             raise CliError(
                 f"{self.song}: {missing} of {song.num_notes} notes have no fingering; the "
                 "planner needs a finger for every note (use --fingering auto)"
             )
-        controller = _make_controller(self.controller)
+        controller = _make_controller(spec)
         check_output_folder(self.out)
         media = MediaOptions(
             audio=self.audio,
@@ -129,13 +140,13 @@ class Play:
             progress=sys.stderr.isatty(),
         )
         metrics = result.metrics
-        title = f"{self.song} ({self.controller}, {metrics['physics']} physics)"
+        title = f"{self.song} ({spec}, {metrics['physics']} physics)"
         write_result(
             result,
             self.out,
             media,
             title=title,
-            extra_metrics={"song": self.song, "controller": self.controller},
+            extra_metrics={"song": self.song, "controller": spec},
         )
         song_f1 = f"  song F1 {metrics['song_f1']:.3f}" if "song_f1" in metrics else ""
         _out(

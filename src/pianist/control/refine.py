@@ -45,6 +45,9 @@ class RefineOptions:
     sigma: float = 0.15
     """Standard deviation of each finger joint's perturbation, in action units ([-1, 1] spans
     the joint's range)."""
+    keep_previous: bool = True
+    """Try the perturbation chosen at the previous step again (in place of one random
+    candidate): a finger that needed more push usually needs it for a few steps."""
     wrong_weight: float = 1.0
     """Cost of a key sounded that is not due, against 1 for a due key not sounded."""
 
@@ -66,11 +69,15 @@ def parse_refine_options(spec: str) -> RefineOptions:
         name = name.strip()
         if name not in fields:
             raise ValueError(f"unknown refine option {name!r}; use {', '.join(fields)}")
-        kind = int if fields[name] in (int, "int") else float
+        kind = str(fields[name])
         try:
-            values[name] = kind(text)
-        except ValueError:
-            raise ValueError(f"refine option {name} needs a number, not {text!r}") from None
+            if kind == "bool":
+                values[name] = {"true": True, "1": True, "false": False, "0": False}[text.lower()]
+            else:
+                values[name] = int(text) if kind == "int" else float(text)
+        except (KeyError, ValueError):
+            what = "true or false" if kind == "bool" else "a number"
+            raise ValueError(f"refine option {name} needs {what}, not {text!r}") from None
     return RefineOptions(**values)
 
 
@@ -96,6 +103,7 @@ class Refiner(BaseController):
         self.rng = np.random.default_rng(0 if seed is None else seed)
         self.dims = self.planner.finger_action_dims()
         self._steps = self._refined = 0
+        self._previous: np.ndarray | None = None
         self._seconds = 0.0
 
     def act(self, observation: Any = None) -> np.ndarray:
@@ -108,11 +116,14 @@ class Refiner(BaseController):
         state = self.handle.snapshot()
         offsets = np.zeros((o.candidates + 1, proposal.shape[0]), dtype=np.float32)
         offsets[1:, self.dims] = self.rng.normal(0.0, o.sigma, (o.candidates, self.dims.size))
+        if o.keep_previous and self._previous is not None:
+            offsets[1] = self._previous
         costs = [self._look_ahead(proposal, offset, state, memory) for offset in offsets]
         # Back to the real episode, the planner as it was after proposing.
         self.planner.attach(self.handle)
         self.planner.set_memory(memory)
         best = int(np.argmin(costs))  # the first of equals: the proposal wins ties
+        self._previous = offsets[best] if best > 0 else None
         self._steps += 1
         self._refined += best > 0
         self._seconds += time.perf_counter() - start
