@@ -13,6 +13,7 @@ from typing import Annotated, Any
 import tyro
 
 from pianist.cli.common import CliError
+from pianist.cli.dataset import Dataset
 from pianist.cli.play import Play
 from pianist.cli.report import Report
 from pianist.cli.songs import ImportPig, Info, Songs
@@ -33,6 +34,7 @@ Command = (
     | Annotated[Train, tyro.conf.subcommand("train")]
     | Annotated[Eval, tyro.conf.subcommand("eval")]
     | Annotated[Sweep, tyro.conf.subcommand("sweep")]
+    | Annotated[Dataset, tyro.conf.subcommand("dataset")]
 )
 
 

@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any, Literal
 
 import gymnasium as gym
+import numpy as np
 
 from pianist.env import PianoEnv
 from pianist.env.handle import control_handle
@@ -87,9 +88,15 @@ def make_env(song: Song | str | Path, controller: Any, **options: Any) -> gym.En
     return _build_env(song, controller, resolve_env_options(controller, song, **options))
 
 
-def _build_env(song: Song, controller: Any, resolved: dict[str, Any]) -> gym.Env:
-    """The environment for already resolved options, wrapped as the controller asks."""
+def _build_env(
+    song: Song, controller: Any, resolved: dict[str, Any], recorder: bool = False
+) -> gym.Env:
+    """The environment for already resolved options, wrapped as the controller asks (and,
+    with ``recorder``, in an :class:`ObservationRecorder` first, inside the controller's
+    wrapper)."""
     env: gym.Env = PianoEnv(song, **resolved)
+    if recorder:
+        env = ObservationRecorder(env)
     wrap = getattr(controller, "wrap_env", None)
     return wrap(env) if wrap is not None else env
 
@@ -104,6 +111,7 @@ def play(
     seed: int | None = 0,
     env_options: dict[str, Any] | None = None,
     progress: bool = False,
+    record_observations: bool = False,
 ) -> PlayResult:
     """Play ``song`` once with ``controller`` and score it.
 
@@ -117,6 +125,10 @@ def play(
         seed: the episode's seed (environment and controller).
         env_options: further :class:`PianoEnv` options.
         progress: show a progress bar on stderr.
+        record_observations: also keep the environment's own observations (before any wrapper
+            of the controller) in ``episode.extra["observations"]``: name -> (T + 1, ...)
+            array, the reset's first; and each step's end flags, ``extra["terminations"]`` and
+            ``extra["truncations"]``, (T,) bool (for demonstration datasets; off by default).
     Raises:
         ValueError: a negative lead-in, or options the controller cannot play with.
         MusicError: the song cannot be loaded.
@@ -132,7 +144,7 @@ def play(
         # Without labels the fingering reward matches fingertips to keys (facts section 3).
         options.setdefault("fingering_reward", "optimal")
     resolved = resolve_env_options(controller, song, **options)
-    env = _build_env(song, controller, resolved)
+    env = _build_env(song, controller, resolved, recorder=record_observations)
     resolved.setdefault("physics", control_handle(env).config.scene.physics)
 
     start = time.perf_counter()
@@ -149,6 +161,11 @@ def play(
         plan = getattr(controller, "plan_arrays", None)
         if plan is not None:
             episode.extra.update(plan())
+        if record_observations:
+            recorder = _find_recorder(env)
+            episode.extra["observations"] = recorder.stacked()
+            episode.extra["terminations"] = np.array(recorder.terminations, dtype=bool)
+            episode.extra["truncations"] = np.array(recorder.truncations, dtype=bool)
     finally:
         close = getattr(controller, "close", None)
         if close is not None:
@@ -163,6 +180,41 @@ def play(
         realtime_factor=metrics["seconds"] / wall if wall > 0 else float("inf"),
     )
     return PlayResult(song, episode, metrics, env, resolved)
+
+
+class ObservationRecorder(gym.Wrapper):
+    """Keeps every observation the wrapped environment returns (reset's and each step's) and
+    each step's terminated and truncated flags."""
+
+    def __init__(self, env: gym.Env) -> None:
+        super().__init__(env)
+        self.observations: list[dict[str, np.ndarray]] = []
+        self.terminations: list[bool] = []
+        self.truncations: list[bool] = []
+
+    def reset(self, **kwargs: Any) -> Any:
+        observation, info = self.env.reset(**kwargs)
+        self.observations = [observation]
+        self.terminations, self.truncations = [], []
+        return observation, info
+
+    def step(self, action: Any) -> Any:
+        observation, reward, terminated, truncated, info = self.env.step(action)
+        self.observations.append(observation)
+        self.terminations.append(bool(terminated))
+        self.truncations.append(bool(truncated))
+        return observation, reward, terminated, truncated, info
+
+    def stacked(self) -> dict[str, np.ndarray]:
+        """name -> (T + 1, ...) array of the episode's observations."""
+        names = self.observations[0].keys()
+        return {name: np.stack([obs[name] for obs in self.observations]) for name in names}
+
+
+def _find_recorder(env: gym.Env) -> ObservationRecorder:
+    while not isinstance(env, ObservationRecorder):
+        env = env.env  # type: ignore[attr-defined]  # a wrapper: the recorder is inside it
+    return env
 
 
 def _normalise(value: Any) -> Any:

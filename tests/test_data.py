@@ -1,0 +1,156 @@
+"""Demonstration datasets: recorded episodes written as Minari datasets and read back."""
+
+import json
+from pathlib import Path
+
+import minari
+import numpy as np
+import pytest
+
+from pianist.cli import main
+from pianist.control import make_controller
+from pianist.data import build as build_module
+from pianist.data.build import BuildSettings, build_dataset, resolve_songs, work_dir
+from pianist.data.record import read_episode, song_provenance
+from pianist.eval.session import play
+
+SONG = "c-major-chords"  # 4 s, two hands: the shortest debug song
+
+
+def test_dataset_round_trip_matches_the_played_episode(tmp_path, monkeypatch, capsys):
+    root = tmp_path / "datasets"
+    report = build_dataset(
+        [SONG],
+        episodes=2,
+        settings=BuildSettings(controller="planner", noise=0.02, seed=3),
+        dataset_id="pianist/round-trip-v0",
+        root=root,
+        workers=2,  # the two episodes in two spawned processes
+    )
+    assert report.recorded == 2 and report.skipped == 0
+    assert not (root / build_module.WORK_FOLDER).exists()  # removed once the dataset exists
+
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(root))
+    dataset = minari.load_dataset("pianist/round-trip-v0")
+    assert dataset.total_episodes == 2
+    first, second = dataset[0], dataset[1]
+
+    # Episode 0 is the planner as it plays, noiseless, with the first seed.
+    played = play(SONG, make_controller("planner"), seed=3, record_observations=True)
+    episode = played.episode
+    T = episode.num_steps
+    assert len(first) == T and first.actions.shape == episode.actions.shape
+    np.testing.assert_array_equal(first.actions, episode.actions)
+    np.testing.assert_array_equal(first.rewards, episode.rewards)
+    observations = episode.extra["observations"]
+    assert set(first.observations) == set(observations)
+    for name, values in observations.items():
+        assert first.observations[name].shape[0] == T + 1
+        np.testing.assert_array_equal(first.observations[name], values)
+    np.testing.assert_array_equal(first.infos["active_keys"], episode.active_keys)
+    np.testing.assert_array_equal(first.infos["goal_keys"], episode.goal_keys)
+    np.testing.assert_array_equal(first.infos["sustain"], episode.sustain)
+    for name, values in episode.reward_terms.items():
+        np.testing.assert_array_equal(first.infos["reward_terms"][name], values)
+    assert first.truncations[-1] and not first.truncations[:-1].any()
+    assert not first.terminations.any()
+
+    metas = list(dataset.storage.get_episode_metadata([0, 1]))
+    assert metas[0]["f1"] == pytest.approx(played.metrics["f1"])
+    assert (metas[0]["seed"], metas[0]["noise"]) == (3, 0.0)
+    assert (metas[1]["seed"], metas[1]["noise"]) == (4, 0.02)
+    assert json.loads(metas[0]["provenance"])["suite"] == "debug"
+    # Episode 1 has noise: another demonstration of the same song.
+    assert not np.array_equal(second.actions, first.actions)
+    pianist_meta = dataset.storage.metadata["pianist"]
+    assert pianist_meta["songs"][SONG]["name"] == SONG
+    assert pianist_meta["settings"]["controller"] == "planner"
+
+    assert main(["dataset", "info", "pianist/round-trip-v0", "--root", str(root)]) == 0
+    out = capsys.readouterr().out
+    mean_f1 = (metas[0]["f1"] + metas[1]["f1"]) / 2
+    assert f"2 episodes, {2 * T} steps, mean F1 {mean_f1:.3f}" in out
+
+
+def test_rerun_records_only_missing_episodes(tmp_path, monkeypatch):
+    root = tmp_path / "datasets"
+    dataset_id = "pianist/resume-v0"
+    settings = BuildSettings(noise=0.02)
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt  # stands for a build stopped before the dataset is written
+
+    with monkeypatch.context() as patch:
+        patch.setattr(build_module, "assemble", interrupted)
+        with pytest.raises(KeyboardInterrupt):
+            build_dataset([SONG], episodes=1, settings=settings, dataset_id=dataset_id, root=root)
+    kept = work_dir(dataset_id, root) / "episodes" / f"{SONG}--0000"
+    assert kept.is_dir() and not (root / dataset_id).exists()
+    recorded_first = read_episode(kept)
+
+    # Other settings would mix two kinds of episodes: refused before anything is played.
+    with pytest.raises(ValueError, match="other settings"):
+        build_dataset(
+            [SONG], episodes=2, settings=BuildSettings(noise=0.05), dataset_id=dataset_id, root=root
+        )
+
+    played: list[tuple[str, int]] = []
+    record = build_module.record_episode
+
+    def counted(song, controller, seed, *args, **kwargs):
+        played.append((song, seed))
+        return record(song, controller, seed, *args, **kwargs)
+
+    monkeypatch.setattr(build_module, "record_episode", counted)
+    lines: list[str] = []
+    report = build_dataset(
+        [SONG], episodes=2, settings=settings, dataset_id=dataset_id, root=root, log=lines.append
+    )
+    assert (report.recorded, report.skipped, report.episodes) == (1, 1, 2)
+    assert "1 already recorded, 1 to record" in lines[0]
+    assert played == [(SONG, 1)]  # episode 0 (seed 0) was not played again
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(root))
+    dataset = minari.load_dataset(dataset_id)
+    assert dataset.total_episodes == 2
+    np.testing.assert_array_equal(dataset[0].actions, recorded_first.actions)
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--songs", "no-such-suite"], "is not a suite"),
+        (["--songs", "debug", "--episodes", "0"], "--episodes must be >= 1"),
+        (["--songs", "debug", "--out", "no version"], "is not a Minari id"),
+        (["--songs", "debug", "--root", "FILE/datasets"], "cannot create output directory"),
+    ],
+)
+def test_bad_input_is_refused_in_one_line(tmp_path, capsys, args, message):
+    blocker = tmp_path / "FILE"
+    blocker.write_text("a file where a folder should be")
+    args = [a.replace("FILE", str(blocker)) for a in args]
+    if "--root" not in args:
+        args += ["--root", str(tmp_path / "datasets")]
+    assert main(["dataset", "build", *args]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("pianist: error:") and message in err[0]
+    assert not (tmp_path / "datasets" / "pianist").exists()  # nothing written
+
+
+def test_folder_songs_and_their_provenance(tmp_path):
+    from pianist.music import get_song, write_midi
+
+    folder = tmp_path / "midi"
+    folder.mkdir()
+    write_midi(get_song("c-major-chords"), folder / "chords.mid")
+    write_midi(get_song("twinkle-twinkle"), folder / "twinkle.mid")
+    (folder / "notes.txt").write_text("not a song of the folder")
+    refs = resolve_songs([str(folder)])
+    assert [Path(r).name for r in refs] == ["chords.mid", "twinkle.mid"]
+    file_info = song_provenance(refs[0])
+    assert file_info["suite"] is None and len(file_info["sha256"]) == 64
+    assert file_info["fingering"].startswith("automatic")  # MIDI files carry no fingers
+    piece = song_provenance("bach-prelude-c-major-bwv846")
+    assert piece["suite"] == "open-etude-12" and piece["composer"] == "Johann Sebastian Bach"
+    assert "licence" in piece and "fingering" in piece
+    with pytest.raises(ValueError, match="no MIDI files"):
+        resolve_songs([str(tmp_path)])
