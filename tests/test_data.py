@@ -154,3 +154,43 @@ def test_folder_songs_and_their_provenance(tmp_path):
     assert "licence" in piece and "fingering" in piece
     with pytest.raises(ValueError, match="no MIDI files"):
         resolve_songs([str(tmp_path)])
+
+
+class _AddsEntry:
+    """A controller whose environment wrapper adds an observation entry in place, as a
+    trained policy's task does (the recorder sits inside it and must not see the entry)."""
+
+    def wrap_env(self, env):
+        import gymnasium as gym
+
+        class Adds(gym.Wrapper):
+            def reset(self, **kwargs):
+                obs, info = self.env.reset(**kwargs)
+                obs["extra"] = np.zeros(1, np.float32)
+                return obs, info
+
+            def step(self, action):
+                obs, *rest = self.env.step(action)
+                obs["extra"] = np.zeros(1, np.float32)
+                return (obs, *rest)
+
+        return Adds(env)
+
+    def reset(self, env, seed=None):
+        self.size = env.action_space.shape
+
+    def act(self, observation):
+        assert "extra" in observation  # the controller sees its own wrapper's entries
+        return np.zeros(self.size, np.float32)
+
+
+def test_observations_are_the_environments_own_under_a_noisy_wrapped_controller():
+    from pianist.data.record import NoisyDemonstrator
+
+    result = play(SONG, NoisyDemonstrator(_AddsEntry(), 0.01), seed=0, record_observations=True)
+    observations = result.episode.extra["observations"]
+    assert "extra" not in observations and "piano_keys" in observations
+    assert observations["piano_keys"].shape == (result.episode.num_steps + 1, 88)
+    assert np.abs(result.episode.actions).max() > 0  # the noise was applied
+    plain = play(SONG, _AddsEntry(), seed=0)
+    assert "observations" not in plain.episode.extra  # recorded only when asked

@@ -194,13 +194,13 @@ class ObservationRecorder(gym.Wrapper):
 
     def reset(self, **kwargs: Any) -> Any:
         observation, info = self.env.reset(**kwargs)
-        self.observations = [observation]
+        self.observations = [_copy(observation)]
         self.terminations, self.truncations = [], []
         return observation, info
 
     def step(self, action: Any) -> Any:
         observation, reward, terminated, truncated, info = self.env.step(action)
-        self.observations.append(observation)
+        self.observations.append(_copy(observation))
         self.terminations.append(bool(terminated))
         self.truncations.append(bool(truncated))
         return observation, reward, terminated, truncated, info
@@ -209,6 +209,11 @@ class ObservationRecorder(gym.Wrapper):
         """name -> (T + 1, ...) array of the episode's observations."""
         names = self.observations[0].keys()
         return {name: np.stack([obs[name] for obs in self.observations]) for name in names}
+
+
+def _copy(observation: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """A copy: wrappers outside the recorder (a policy's task entries) add to the dict."""
+    return {name: np.array(value) for name, value in observation.items()}
 
 
 def _find_recorder(env: gym.Env) -> ObservationRecorder:
