@@ -30,6 +30,14 @@ Examples::
     nohup taskset -c 1 python benchmarks/bench_train.py learn --preset residual-anchored \
         --song c-major-chords --minutes 30 --out runs/anchored-chords &
     python benchmarks/bench_train.py report runs/fast runs/droq-paper --json learn.json
+
+Practising the hard parts (windows) against whole-piece episodes, one core each::
+
+    nohup taskset -c 0 python benchmarks/bench_train.py learn --preset residual-anchored \
+        --song mozart-sonata-k545-allegro --minutes 10 --out runs/k545-anchored &
+    nohup taskset -c 1 python benchmarks/bench_train.py learn --preset residual-windows \
+        --song mozart-sonata-k545-allegro --minutes 10 --out runs/k545-windows &
+    python benchmarks/bench_train.py report runs/k545-anchored runs/k545-windows --marks 5 10
 """
 
 from __future__ import annotations

@@ -154,6 +154,20 @@ class TrainConfig:
     """Evaluate one deterministic episode every this many steps (and at the end)."""
     checkpoint_interval: int = 10_000
     """Checkpoint at the first episode end after this many steps since the last one."""
+    windows: bool = False
+    """Practise the hard parts: a share of the training episodes are short windows that
+    start mid-piece from states the planner reaches there, drawn more often where the policy
+    loses F1 (:mod:`pianist.agents.windows`). Evaluation stays the whole piece."""
+    window_s: float = 4.0
+    """Seconds of a window episode (it is truncated after them, or at the piece's end)."""
+    window_stride_s: float = 1.0
+    """Seconds between two windows' starts."""
+    window_share: float = 0.75
+    """Share of the training episodes that are windows; the rest play the whole piece."""
+    window_power: float = 1.0
+    """A window is drawn with weight (its error + 0.01) ** power, error = 1 - its F1."""
+    window_uniform: float = 0.2
+    """Share of the window draws made uniformly over all windows."""
 
     def __post_init__(self) -> None:
         for name in (
@@ -169,6 +183,14 @@ class TrainConfig:
             raise ValueError(f"seed_steps must be >= 0, not {self.seed_steps}")
         if self.seed_policy not in ("uniform", "actor"):
             raise ValueError(f"seed_policy must be 'uniform' or 'actor', not {self.seed_policy!r}")
+        if not (self.window_s > 0 and self.window_stride_s > 0 and self.window_power >= 0):
+            raise ValueError(
+                "window_s and window_stride_s must be > 0 and window_power >= 0, not "
+                f"{self.window_s}, {self.window_stride_s}, {self.window_power}"
+            )
+        for name in ("window_share", "window_uniform"):
+            if not 0.0 <= getattr(self, name) <= 1.0:
+                raise ValueError(f"{name} must be in [0, 1], not {getattr(self, name)}")
 
     def to_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
@@ -277,6 +299,13 @@ PRESETS: dict[str, TrainConfig] = {
         eval_interval=2000,
     ),
 }
+
+# Practise the hard parts: residual-anchored, with three training episodes in four being
+# 4-second windows started mid-piece from the planner's states, drawn more often where the
+# policy loses F1 (TrainConfig.windows); evaluation stays the whole piece.
+PRESETS["residual-windows"] = dataclasses.replace(
+    PRESETS["residual-anchored"], preset="residual-windows", windows=True
+)
 
 
 def get_preset(name: str, **overrides: Any) -> TrainConfig:

@@ -10,6 +10,7 @@ into the float32 vector the networks read, adding the planner's action for resid
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -20,10 +21,21 @@ import numpy as np
 from pianist.agents.config import TaskConfig
 from pianist.env import PianoEnv
 from pianist.env.handle import control_handle
+from pianist.env.piano_env import EnvState
 from pianist.music import GoalFrames, Song, load_song
 
 TARGET_SCALE = 10.0  # m -> dm: fingertip-to-key vectors of a few cm become ~0.1-1
 HAND_FINGERS = {"right": range(0, 5), "left": range(5, 10)}
+
+
+@dataclass(frozen=True)
+class AgentEnvState:
+    """An :class:`AgentEnv`'s episode state between two steps (:meth:`AgentEnv.snapshot`):
+    the piano's, and the previous action and reward that its next observation shows."""
+
+    env: EnvState
+    prev_action: np.ndarray
+    prev_reward: float
 
 
 class AgentEnv(gym.Wrapper):
@@ -40,6 +52,7 @@ class AgentEnv(gym.Wrapper):
         self.task = task
         self.handle = base = control_handle(env)
         self._action_shape = _box(env.action_space).shape
+        self._prev: tuple[np.ndarray, float] = (np.zeros(self._action_shape, np.float32), 0.0)
         A = self._action_shape[0]
         assert isinstance(env.observation_space, gym.spaces.Dict)  # as a PianoEnv's
         spaces = dict(env.observation_space.spaces)
@@ -80,14 +93,30 @@ class AgentEnv(gym.Wrapper):
     action_names = property(lambda self: self.handle.action_names)
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
-        obs, info = self.env.reset(seed=seed, options=options)
-        zero = np.zeros(self._action_shape, np.float32)
-        return self._augment(obs, zero, 0.0), info
+        """Start an episode at step 0, or with ``options={"start": state}`` go on from an
+        :class:`AgentEnvState` (:meth:`snapshot`): the same observations, rewards and
+        physics follow as after the snapshot."""
+        start = (options or {}).get("start")
+        if start is None:
+            obs, info = self.env.reset(seed=seed, options=options)
+            action, reward = np.zeros(self._action_shape, np.float32), 0.0
+        else:
+            obs, info = self.env.reset(seed=seed, options={**(options or {}), "start": start.env})
+            action, reward = start.prev_action.copy(), start.prev_reward
+        self._prev = (action, reward)
+        return self._augment(obs, action, reward), info
 
     def step(self, action: np.ndarray):
         obs, reward, terminated, truncated, info = self.env.step(action)
         action = np.clip(np.asarray(action, np.float32), -1.0, 1.0)
+        self._prev = (action, float(reward))
         return self._augment(obs, action, float(reward)), reward, terminated, truncated, info
+
+    def snapshot(self) -> AgentEnvState:
+        """The episode's state now (a copy), to go on from with ``reset(options={"start":
+        state})``."""
+        action, reward = self._prev
+        return AgentEnvState(self.handle.snapshot(), action.copy(), reward)
 
     def _augment(self, obs: dict[str, np.ndarray], action: np.ndarray, reward: float):
         if self.task.action_reward_observation:
@@ -153,6 +182,16 @@ class Featurizer:
         self.obs_dim = int(sum(sizes)) + (self.action_dim if task.residual else 0)
         self._planner: Any = None
         self._base = np.zeros(self.action_dim, np.float32)
+
+    def memory(self) -> list[dict[str, np.ndarray]] | None:
+        """A copy of what the residual's planner remembers between steps (None: no planner)."""
+        return None if self._planner is None else self._planner.memory()
+
+    def set_memory(self, memory: list[dict[str, np.ndarray]] | None) -> None:
+        """Give the planner a :meth:`memory` copy, after :meth:`reset`, to go on from a
+        snapshot of the environment taken with it."""
+        if memory is not None:
+            self._planner.set_memory(memory)
 
     def reset(self, env: gym.Env, seed: int | None = None) -> None:
         """Call after ``env.reset``: restarts the planner of a residual policy."""

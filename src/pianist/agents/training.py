@@ -13,6 +13,11 @@ two NumPy generators; each training episode resets the environment with a seed d
 the run seed and the episode number. Checkpoints are taken at episode ends (the environment
 needs no saved state then), so a resumed run repeats exactly what the interrupted one did.
 
+With ``TrainConfig.windows`` a share of the episodes start mid-piece and are truncated after a
+few seconds (:mod:`pianist.agents.windows`): the window starts are recorded again when a run
+resumes (the recording is deterministic), the windows' errors and the draws' generator are
+in the checkpoint.
+
 The loop (:func:`train`) reads top to bottom; everything it carries from one iteration to the
 next is in a :class:`_Run`, and each part of an iteration is a function of its own.
 """
@@ -36,6 +41,7 @@ from pianist.agents.envs import AgentEnv, Featurizer, make_agent_env
 from pianist.agents.policy import NumpyActor, PolicyController
 from pianist.agents.replay import ReplayBuffer
 from pianist.agents.rundir import RunLog
+from pianist.agents.windows import Windows, record_windows, start_window, step_f1
 from pianist.eval import run_episode
 
 if TYPE_CHECKING:
@@ -97,6 +103,15 @@ class _Run:
     clock: float = 0.0  # time.perf_counter() up to which wall_s counts
     rate_step: int = 0  # step and time of the previous "train" row
     rate_clock: float = 0.0
+    # Windows (TrainConfig.windows): the window starts and their errors, the generator of
+    # the draws, and the current episode's window (-1: the whole piece), first and end step
+    # (where it is truncated), and its sounding and due keys per step.
+    windows: Windows | None = None
+    window_rng: np.random.Generator = field(default_factory=lambda: np.random.default_rng(0))
+    episode_window: int = -1
+    episode_start: int = 0
+    episode_end: int = 0
+    episode_keys: list[tuple[np.ndarray, np.ndarray]] = field(default_factory=list)
 
 
 def train(
@@ -144,7 +159,7 @@ def train(
         run.rate_step = run.step
         _start_episode(run)
         while run.step < steps:
-            n = min(config.steps_per_iteration, env.num_steps - env.step_index, steps - run.step)
+            n = min(config.steps_per_iteration, run.episode_end - env.step_index, steps - run.step)
             learning = run.step >= config.seed_steps and run.replay.transitions > 0
             if learning and config.pipeline:
                 _update(run, n)  # JAX runs it on its own thread while _collect steps
@@ -174,7 +189,7 @@ def train(
         if run.last_eval_step != run.step:
             _evaluate(run, log)
         if run.last_checkpoint_step != run.step or run.step == 0:
-            _checkpoint(run, mid_episode=env.step_index not in (0, env.num_steps))
+            _checkpoint(run, mid_episode=env.step_index not in (run.episode_start, run.episode_end))
     return TrainResult(run.step, run.last_eval, run.resumed_from, run.wall_s, out, run.best_eval)
 
 
@@ -223,6 +238,18 @@ def _new_run(out: Path, song: str, config: TrainConfig, steps: int) -> _Run:
     )
     agent = make_agent(features.obs_dim, features.action_dim, config.agent)
     state = agent.init(config.seed)
+    windows, recording_s = None, 0.0
+    if config.windows:  # on the training environment: each episode resets it anyway
+        clock = time.perf_counter()
+        dt = env.config.control_timestep_s
+        windows, _ = record_windows(
+            env,
+            features,
+            max(1, round(config.window_s / dt)),
+            max(1, round(config.window_stride_s / dt)),
+            config.seed,
+        )
+        recording_s = time.perf_counter() - clock  # training time (a resumed run: setup)
     return _Run(
         out=out,
         config=config,
@@ -235,6 +262,9 @@ def _new_run(out: Path, song: str, config: TrainConfig, steps: int) -> _Run:
         explore_rng=np.random.default_rng([config.seed, 1]),
         sample_rng=np.random.default_rng([config.seed, 2]),
         actor=_numpy_actor_of(state, config),
+        wall_s=recording_s,
+        windows=windows,
+        window_rng=np.random.default_rng([config.seed, 3]),
     )
 
 
@@ -252,6 +282,9 @@ def _resume_run(run: _Run) -> Path:
     run.replay.load_arrays(ckpt.load_replay_arrays(checkpoint))
     run.explore_rng.bit_generator.state = saved["explore_rng"]
     run.sample_rng.bit_generator.state = saved["sample_rng"]
+    if run.windows is not None:
+        run.windows.load_state(saved["windows"])
+        run.window_rng.bit_generator.state = saved["windows"]["rng"]
     counters = {**_counters(run), **saved["counters"]}  # a counter missing: its start value
     run.step = int(counters["step"])
     run.episode = int(counters["episode"])
@@ -279,10 +312,20 @@ def _counters(run: _Run) -> dict[str, Any]:
 
 
 def _start_episode(run: _Run) -> None:
-    """Reset the environment for training episode ``run.episode`` (its own derived seed)."""
-    seed = _episode_seed(run.config.seed, run.episode)
-    obs, _ = run.env.reset(seed=seed)
-    run.features.reset(run.env, seed)
+    """Reset the environment for training episode ``run.episode`` (its own derived seed):
+    at the start of the piece, or (``TrainConfig.windows``) at a window drawn for it."""
+    config, env = run.config, run.env
+    seed = _episode_seed(config.seed, run.episode)
+    run.episode_window, run.episode_end = -1, env.num_steps
+    if run.windows is not None and run.window_rng.random() < config.window_share:
+        i = run.windows.draw(run.window_rng, config.window_power, config.window_uniform)
+        obs = start_window(env, run.features, run.windows.starts[i], seed)
+        run.episode_window, run.episode_end = i, int(run.windows.ends[i])
+    else:
+        obs, _ = env.reset(seed=seed)
+        run.features.reset(env, seed)
+    run.episode_start = env.step_index
+    run.episode_keys = []
     run.x = run.features(obs)
     run.replay.start_episode(run.x)
 
@@ -300,12 +343,14 @@ def _collect(run: _Run, n: int) -> bool:
             a = run.explore_rng.uniform(-1.0, 1.0, features.action_dim).astype(np.float32)
         else:
             a = run.actor.sample(run.x, run.explore_rng).astype(np.float32)
-        obs, reward, terminated, truncated, _ = run.env.step(features.env_action(a))
+        obs, reward, terminated, truncated, info = run.env.step(features.env_action(a))
         run.x = features(obs)
         run.replay.add(a, reward, 0.0 if terminated else 1.0, run.x)
         run.episode_return += reward
         run.step += 1
-        if terminated or truncated:
+        if run.windows is not None:
+            run.episode_keys.append((info["active_keys"], info["goal_keys"]))
+        if terminated or truncated or run.env.step_index >= run.episode_end:
             return True
     return False
 
@@ -345,7 +390,10 @@ def _evaluate(run: _Run, log: RunLog) -> None:
     """Play one deterministic episode with the current actor and log it; keep the actor as
     ``best/`` when its F1 is the best so far."""
     controller = PolicyController.from_actor(run.config, run.actor)
-    metrics = run_episode(run.eval_env, controller, seed=run.config.seed).metrics()
+    episode = run_episode(run.eval_env, controller, seed=run.config.seed)
+    metrics = episode.metrics()
+    if run.windows is not None:
+        run.windows.record_evaluation(step_f1(episode.active_keys, episode.goal_keys))
     row = {k: float(metrics[k]) for k in EVAL_KEYS}
     run.last_eval_step = run.step
     entry = {
@@ -395,10 +443,22 @@ def _log_rate(run: _Run, log: RunLog) -> float:
 
 
 def _end_episode(run: _Run, log: RunLog) -> None:
-    """Log the finished training episode's return and count it."""
-    log.write(
-        {"kind": "episode", "step": run.step, "episode": run.episode, "return": run.episode_return}
-    )
+    """Log the finished training episode's return (with windows: its F1, and the window it
+    played, whose error it updates) and count it."""
+    row: dict[str, Any] = {
+        "kind": "episode",
+        "step": run.step,
+        "episode": run.episode,
+        "return": run.episode_return,
+    }
+    if run.windows is not None:
+        active, due = (np.stack(x) for x in zip(*run.episode_keys, strict=True))
+        f1 = step_f1(active, due)
+        row["f1"] = float(f1.mean())
+        if run.episode_window >= 0:
+            row.update(window=run.episode_window, start_step=run.episode_start)
+            run.windows.record_episode(run.episode_window, f1)
+    log.write(row)
     run.episode += 1
     run.episode_return = 0.0
 
@@ -422,6 +482,11 @@ def _checkpoint(run: _Run, mid_episode: bool) -> None:
             "counters": _counters(run),
             "last_eval": run.last_eval,
             "mid_episode": mid_episode,
+            **(
+                {"windows": {**run.windows.state(), "rng": run.window_rng.bit_generator.state}}
+                if run.windows is not None
+                else {}
+            ),
         },
     )
     run.last_checkpoint_step = run.step

@@ -272,7 +272,17 @@ class PianoEnv(gym.Env):
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+        """Start an episode at step 0, or with ``options={"start": state}`` go on from an
+        :class:`EnvState` (:meth:`snapshot`) as :meth:`restore` does."""
         super().reset(seed=seed)
+        start = (options or {}).get("start")
+        if start is not None:  # continue an episode from a snapshot of it (see restore)
+            self.restore(start)
+            return self._observation(), {
+                "step": start.step,
+                "active_keys": start.active.copy(),
+                "sustain": start.sustain,
+            }
         model, data = self.model, self.data
         mujoco.mj_resetData(model, data)
         if self.config.randomize_hand_positions:
