@@ -76,16 +76,21 @@ def test_rerun_records_only_missing_episodes(tmp_path, monkeypatch):
     root = tmp_path / "datasets"
     dataset_id = "pianist/resume-v0"
     settings = BuildSettings(noise=0.02)
+    record = build_module.record_episode
 
-    def interrupted(*args, **kwargs):
-        raise KeyboardInterrupt  # stands for a build stopped before the dataset is written
+    def second_fails(song, controller, seed, *args, **kwargs):
+        if seed == 1:
+            raise ValueError("the simulation became unstable")  # stands for any failure
+        return record(song, controller, seed, *args, **kwargs)
 
     with monkeypatch.context() as patch:
-        patch.setattr(build_module, "assemble", interrupted)
-        with pytest.raises(KeyboardInterrupt):
-            build_dataset([SONG], episodes=1, settings=settings, dataset_id=dataset_id, root=root)
-    kept = work_dir(dataset_id, root) / "episodes" / f"{SONG}--0000"
-    assert kept.is_dir() and not (root / dataset_id).exists()
+        patch.setattr(build_module, "record_episode", second_fails)
+        with pytest.raises(ValueError, match="1 of 2 episodes failed.*unstable"):
+            build_dataset([SONG], episodes=2, settings=settings, dataset_id=dataset_id, root=root)
+    episodes = work_dir(dataset_id, root) / "episodes"
+    kept = episodes / f"{SONG}--0000"
+    assert kept.is_dir() and not (episodes / f"{SONG}--0001").exists()
+    assert not (root / dataset_id).exists()  # no dataset until every episode exists
     recorded_first = read_episode(kept)
 
     # Other settings would mix two kinds of episodes: refused before anything is played.
@@ -95,7 +100,6 @@ def test_rerun_records_only_missing_episodes(tmp_path, monkeypatch):
         )
 
     played: list[tuple[str, int]] = []
-    record = build_module.record_episode
 
     def counted(song, controller, seed, *args, **kwargs):
         played.append((song, seed))

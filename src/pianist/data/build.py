@@ -276,7 +276,7 @@ def _run(
         for task in todo:
             try:
                 _record(task, settings)
-            except (ValueError, OSError, RuntimeError) as exc:
+            except Exception as exc:  # noqa: BLE001 - kept as this episode's failure, as in a worker
                 finished(task, exc)
             else:
                 finished(task, None)
