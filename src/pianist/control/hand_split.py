@@ -89,8 +89,9 @@ def split_hands(
         dt: control step (s).
         costs: the weights (:class:`SplitCosts`).
     Returns:
-        (T, 88) int8: 0 the right hand plays the key, 1 the left, -1 not due or left out
-        (no position of the two hands reaches it).
+        (T, 88) int8: 0 the right hand plays the key, 1 the left, -1 where none is due.
+        The split is by order across the keyboard, so a key neither hand reaches from the
+        planned positions is still given to one; that hand's own plan leaves it out.
     """
     c = costs or SplitCosts()
     T = keys.shape[0]
