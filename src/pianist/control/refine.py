@@ -6,7 +6,8 @@ held for ``horizon_steps`` steps while the planner goes on acting in closed loop
 of the environment restored to the current state for every candidate (the full physics:
 :meth:`pianist.env.PianoEnv.fork` and :meth:`~pianist.env.PianoEnv.restore`). It plays the
 proposal plus the perturbation whose look-ahead left the fewest due keys unsounded and
-sounded the fewest others. The unperturbed proposal is candidate 0 and wins ties, so where
+sounded the fewest others; the perturbation chosen at one step is among the next step's
+candidates (a finger that needed more push usually needs it for a few steps). The unperturbed proposal is candidate 0 and wins ties, so where
 looking ahead finds nothing better the planner plays as it would alone.
 
 This is predictive sampling (the paper's MPC baseline) around the planner instead of around
