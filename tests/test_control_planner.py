@@ -88,6 +88,14 @@ def test_the_papers_scene_without_the_height_slide_still_plays_the_fingers():
     pressed = np.flatnonzero(np.asarray(episode.active_keys).any(axis=0))
     assert set(pressed.tolist()) == {60 - 21, 62 - 21, 64 - 21}
     assert episode.metrics()["precision"] >= 0.9
+    # Asked for the paper's embodiment, the planner declares that scene.
+    paper = IKPlanner(PlannerConfig(paper_embodiment=True))
+    paper_env = make_env(Song(notes), paper, physics="fast")
+    assert paper_env.unwrapped.config.scene.hand.forearm_dofs == (
+        "tx",
+        "ty",
+    )
+    assert IKPlanner().env_options()["forearm_dofs"] == ("tx", "ty", "tz")
 
 
 def _step_planner(song, frames, physics="fast"):

@@ -7,13 +7,14 @@ of the environment restored to the current state for every candidate (the full p
 :meth:`pianist.env.PianoEnv.fork` and :meth:`~pianist.env.PianoEnv.restore`). It plays the
 proposal plus the perturbation whose look-ahead left the fewest due keys unsounded and
 sounded the fewest others; the perturbation chosen at one step is among the next step's
-candidates (a finger that needed more push usually needs it for a few steps). The unperturbed proposal is candidate 0 and wins ties, so where
-looking ahead finds nothing better the planner plays as it would alone.
+candidates (a finger that needed more push usually needs it for a few steps). The
+unperturbed proposal is candidate 0 and wins ties, so where looking ahead finds nothing
+better the planner plays as it would alone.
 
 This is predictive sampling (the paper's MPC baseline) around the planner instead of around
 a spline: the planner supplies the motion, the samples only correct what the physics does to
-it (a finger that slides off, a key that flickers at the bottom of its travel, a late strike).
-It costs ``(candidates + 1) * horizon_steps`` simulated steps per step.
+it (a finger that slides off, a key that flickers at the bottom of its travel, a late
+strike). It costs ``(candidates + 1) * horizon_steps`` simulated steps per step.
 """
 
 from __future__ import annotations

@@ -206,6 +206,9 @@ class PlannerConfig:
     """Added for a finger that has pressed its key for ``unsounded_steps`` without sounding
     it: resting on the key's top, too weak to push it down (the little finger above all)."""
     unsounded_steps: int = 2
+    paper_embodiment: bool = False
+    """Play in the paper's scene (forearm slides ``tx`` and ``ty`` only) instead of declaring
+    the height slide (:data:`ENV_OPTIONS`): the thumb then cannot press a white key."""
     unsounded_latch: bool = True
     """Keep the push for the rest of the key's press once given (the key sounds only in the
     last 0.5 degrees of its travel: a finger easing off lets it flicker)."""
@@ -216,6 +219,8 @@ class PlannerConfig:
 #: height its fingertip capsule stops ~1.5 mm above the depth at which a key sounds, even with
 #: the wrist flexed (measured by sampling every thumb and wrist angle).
 ENV_OPTIONS: dict[str, Any] = {"forearm_dofs": ("tx", "ty", "tz")}
+#: The paper's embodiment (``PlannerConfig.paper_embodiment``).
+PAPER_ENV_OPTIONS: dict[str, Any] = {"forearm_dofs": ("tx", "ty")}
 
 
 class PlannerState(Protocol):

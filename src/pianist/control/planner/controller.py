@@ -23,7 +23,12 @@ import numpy as np
 
 from pianist.control.base import BaseController
 from pianist.control.hand_split import HandReach, SplitCosts, split_hands
-from pianist.control.planner.config import ENV_OPTIONS, FINGERS_PER_HAND, PlannerConfig
+from pianist.control.planner.config import (
+    ENV_OPTIONS,
+    FINGERS_PER_HAND,
+    PAPER_ENV_OPTIONS,
+    PlannerConfig,
+)
 from pianist.control.planner.forearm import _keep_forearms_apart
 from pianist.control.planner.hand import Hand
 from pianist.control.planner.postures import _use_postures
@@ -60,8 +65,9 @@ class IKPlanner(BaseController):
     # ----------------------------------------------------------------------------- set-up
 
     def env_options(self, song: Song | None = None) -> dict[str, Any]:
-        """The environment the planner plays in (:data:`ENV_OPTIONS`), whatever the song."""
-        return dict(ENV_OPTIONS)
+        """The environment the planner plays in (:data:`ENV_OPTIONS`, or with
+        ``paper_embodiment`` the paper's scene), whatever the song."""
+        return dict(PAPER_ENV_OPTIONS if self.config.paper_embodiment else ENV_OPTIONS)
 
     def reset(self, env: gym.Env, seed: int | None = None) -> None:
         handle = control_handle(env)
