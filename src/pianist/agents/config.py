@@ -164,8 +164,10 @@ class TrainConfig:
     """Seconds between two windows' starts."""
     window_share: float = 0.75
     """Share of the training episodes that are windows; the rest play the whole piece."""
-    window_power: float = 1.0
-    """A window is drawn with weight (its error + 0.01) ** power, error = 1 - its F1."""
+    window_power: float = 2.0
+    """A window is drawn with weight (its error + 0.01) ** power, error = 1 - its F1. The
+    planner's errors on mozart-sonata-k545-allegro's 4 s windows lie in 0.11-0.24: power 1
+    would draw the hardest only 1.8 times as often as the easiest, power 2 3.3 times."""
     window_uniform: float = 0.2
     """Share of the window draws made uniformly over all windows."""
 
