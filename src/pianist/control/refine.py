@@ -120,7 +120,11 @@ class Refiner(BaseController):
         offsets[1:, self.dims] = self.rng.normal(0.0, o.sigma, (o.candidates, self.dims.size))
         if o.keep_previous and self._previous is not None:
             offsets[1] = self._previous
-        costs = [self._look_ahead(proposal, offset, state, memory) for offset in offsets]
+        costs: list[float] = []
+        for offset in offsets:
+            costs.append(self._look_ahead(proposal, offset, state, memory))
+            if costs[-1] == 0.0:
+                break  # nothing can do better; the same choice as trying them all
         # Back to the real episode, the planner as it was after proposing.
         self.planner.attach(self.handle)
         self.planner.set_memory(memory)
