@@ -12,6 +12,7 @@ from typing import Annotated, Any
 
 import tyro
 
+from pianist.cli.bc import BC
 from pianist.cli.common import CliError
 from pianist.cli.dataset import Dataset
 from pianist.cli.play import Play
@@ -35,6 +36,7 @@ Command = (
     | Annotated[Eval, tyro.conf.subcommand("eval")]
     | Annotated[Sweep, tyro.conf.subcommand("sweep")]
     | Annotated[Dataset, tyro.conf.subcommand("dataset")]
+    | Annotated[BC, tyro.conf.subcommand("bc")]
 )
 
 

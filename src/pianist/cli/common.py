@@ -25,11 +25,16 @@ def require_jax() -> None:
 
 
 def make_controller_from_spec(spec: str) -> Any:
-    """A controller from the --controller spec: policy:RUN_DIR, or what make_controller takes."""
+    """A controller from the --controller spec: policy:RUN_DIR, bc:DIR (a behaviour-cloning
+    policy), or what make_controller takes."""
     if spec.startswith("policy:"):
         from pianist.agents import PolicyController
 
         return PolicyController(spec.removeprefix("policy:"))
+    if spec.startswith("bc:"):
+        from pianist.agents.bc import BCController
+
+        return BCController(spec.removeprefix("bc:"))
     from pianist.control import make_controller
 
     return make_controller(spec)

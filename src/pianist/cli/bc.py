@@ -1,0 +1,156 @@
+"""``pianist bc``: behaviour cloning (and DAgger) from a demonstration dataset."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Annotated, Any
+
+import tyro
+
+from pianist.cli.common import CliError, make_controller_from_spec, out, prepare_dir, require_jax
+
+
+@dataclass(frozen=True)
+class BCTrain:
+    """Train one policy for the songs of a Minari dataset by behaviour cloning (MSE on the
+    actions), then optionally N rounds of DAgger: the policy plays the songs and the planner
+    labels every state it visits (docs/bc.md). Play the result with --controller bc:OUT."""
+
+    dataset: str
+    """The dataset id, e.g. pianist/open-etude-12-planner-v0 (pianist dataset build)."""
+    out: Path
+    """The policy's folder (replaced whole if it exists)."""
+    root: Annotated[
+        Path | None, tyro.conf.arg(help_behavior_hint="(default: Minari's datasets folder)")
+    ] = None
+    """Where datasets are stored."""
+    dagger_rounds: int = 0
+    """DAgger rounds after behaviour cloning (each plays every song once)."""
+    songs: Annotated[
+        tuple[str, ...], tyro.conf.arg(help_behavior_hint="(default: the dataset's songs)")
+    ] = ()
+    """Songs DAgger plays."""
+    hidden: tuple[int, ...] = (256, 256)
+    """Hidden layer widths (the paper's: up to 1024)."""
+    steps: int = 3000
+    """Adam steps of behaviour cloning, and again of each DAgger round."""
+    batch_size: int = 256
+    """Demonstration steps per Adam step."""
+    learning_rate: float = 1e-3
+    """Adam's learning rate."""
+    input_noise: float = 0.3
+    """Std of the noise added to the standardised features of each minibatch (0: none)."""
+    seed: int = 0
+    """Seed of the weights and the minibatches."""
+
+    def run(self) -> None:
+        import importlib.util
+
+        require_jax()
+        if importlib.util.find_spec("minari") is None:
+            raise CliError("datasets need Minari: pip install 'pianist[data]' (minari[hdf5])")
+        for name, value in (("--steps", self.steps), ("--batch-size", self.batch_size)):
+            if value < 1:
+                raise CliError(f"{name} must be >= 1, not {value}")
+        if self.dagger_rounds < 0:
+            raise CliError(f"--dagger-rounds must be >= 0, not {self.dagger_rounds}")
+        if not self.hidden or min(self.hidden) < 1:
+            raise CliError(f"--hidden needs widths >= 1, not {list(self.hidden)}")
+        if not self.input_noise >= 0:
+            raise CliError(f"--input-noise must be >= 0, not {self.input_noise}")
+        if not self.learning_rate > 0:
+            raise CliError(f"--learning-rate must be > 0, not {self.learning_rate}")
+        from pianist.agents import bc
+        from pianist.data.minari_io import load_dataset
+
+        dataset = load_dataset(self.dataset, self.root)
+        options, songs = _dataset_setup(dataset)
+        songs = list(self.songs) or songs
+        prepare_dir(self.out.parent)
+        data = bc.demonstrations(bc.minari_episodes(dataset))
+        config = bc.BCConfig(
+            hidden_dims=self.hidden,
+            learning_rate=self.learning_rate,
+            batch_size=self.batch_size,
+            steps=self.steps,
+            input_noise=self.input_noise,
+            seed=self.seed,
+        )
+        out(
+            f"{self.dataset}: {len(data.x)} steps, {data.features.dim} features, "
+            f"{data.y.shape[1]} actions; environment {options}"
+        )
+        policy, history = bc.dagger(data, songs, self.dagger_rounds, config, options, log=out)
+        bc.save_policy(
+            policy,
+            self.out,
+            {"dataset": self.dataset, "config": bc.config_dict(config), "dagger": history},
+        )
+        out(
+            f"wrote {self.out} (final loss {policy.info['final_loss']:.5f}); "
+            f"play it with: pianist play SONG --controller bc:{self.out}"
+        )
+
+
+def _dataset_setup(dataset: Any) -> tuple[dict[str, Any], list[str]]:
+    """The environment options the dataset's episodes were played in (the controller's
+    declared ones and the physics) and its songs, as stored with the dataset."""
+    metas = list(dataset.storage.get_episode_metadata(dataset.episode_indices))
+    settings = dataset.storage.metadata.get("pianist", {}).get("settings", {})
+    from pianist.music import load_song
+
+    songs = list(dict.fromkeys(str(m.get("song_ref", m.get("song"))) for m in metas))
+    controller = make_controller_from_spec(settings.get("controller", "planner"))
+    declare = getattr(controller, "env_options", None)
+    options: dict[str, Any] = dict(declare(load_song(songs[0]))) if declare is not None else {}
+    physics = {str(m["physics"]) for m in metas if "physics" in m}
+    if len(physics) == 1:
+        options["physics"] = physics.pop()
+    return options, songs
+
+
+@dataclass(frozen=True)
+class BCEval:
+    """Play a behaviour-cloning policy on several songs, a song drawn per episode (the
+    multi-song environment, seeded), and print each song's mean F1."""
+
+    policy: tyro.conf.Positional[Annotated[Path, tyro.conf.arg(metavar="DIR")]]
+    """The policy's folder (pianist bc train --out)."""
+    songs: tuple[str, ...]
+    """Songs to draw from (names or files)."""
+    episodes: int = 10
+    """Episodes played in all."""
+    seed: int = 0
+    """Seed of the song draw."""
+
+    def run(self) -> None:
+        if self.episodes < 1:
+            raise CliError(f"--episodes must be >= 1, not {self.episodes}")
+        from pianist.agents.bc import evaluate_multi_song, load_policy
+        from pianist.env.multi_song import MultiSongEnv
+
+        policy = load_policy(self.policy)
+        env = MultiSongEnv(list(self.songs), **policy.env_options)
+        try:
+            scores = evaluate_multi_song(policy, env, self.episodes, self.seed)
+        finally:
+            env.close()
+        out(f"{'song':40s} {'episodes':>8s} {'F1':>6s}")
+        for song, values in sorted(scores.items()):
+            out(f"{song:40s} {len(values):8d} {sum(values) / len(values):6.3f}")
+        every = [v for values in scores.values() for v in values]
+        out(f"{'mean over episodes':40s} {len(every):8d} {sum(every) / len(every):6.3f}")
+
+
+@dataclass(frozen=True)
+class BC:
+    """Behaviour cloning and DAgger: one policy for many songs (train one, evaluate one)."""
+
+    command: tyro.conf.OmitSubcommandPrefixes[
+        Annotated[BCTrain, tyro.conf.subcommand("train")]
+        | Annotated[BCEval, tyro.conf.subcommand("eval")]
+    ]
+
+    def run(self) -> None:
+        self.command.run()
