@@ -68,7 +68,7 @@ def test_features_are_every_entry_in_sorted_order_with_the_goal_cut():
     assert features(obs).tolist() == [1, 2, 3, 4, 0, 1, 2, 3, 7, 8, 9]
 
 
-def test_a_tiny_dataset_trains_a_policy_that_plays_its_song(trained):
+def test_a_tiny_dataset_trains_a_policy_that_plays_its_song(trained, capsys):
     root, out = trained
     controller = make_controller_from_spec(f"bc:{out}")
     # It plays in the scene of the demonstrations (the planner's forearm slides).
@@ -79,6 +79,11 @@ def test_a_tiny_dataset_trains_a_policy_that_plays_its_song(trained):
         for name in ("zero", "random")
     }
     assert max(baselines.values()) < FLOOR < f1, (f1, baselines)
+    # pianist bc eval plays each song in the multi-song environment: the same F1 for SONG.
+    capsys.readouterr()
+    assert main(["bc", "eval", str(out), "--songs", SONG, "twinkle-twinkle"]) == 0
+    rows = {line.split()[0]: line.split() for line in capsys.readouterr().out.splitlines()}
+    assert rows[SONG][1:] == ["1", f"{f1:.3f}"] and "twinkle-twinkle" in rows
     saved = json.loads((out / bc.CONFIG_FILE).read_text())
     assert saved["info"]["dataset"] == DATASET and saved["info"]["steps"] == 162
 

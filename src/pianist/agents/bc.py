@@ -5,7 +5,7 @@ writes the normalised action in [-1, 1]^A. Its features (:class:`Features`) are 
 observation entry, in sorted key order, each flattened in C order; ``goal`` keeps its first
 ``goal_rows`` rows (the current frame and the look-ahead). They are standardised with the
 training data's per-feature mean and std (std floored at :data:`STD_FLOOR`, constant features
-pass through), then an MLP (hidden sizes configurable; the paper's policies go up to 1024
+are only centred), then an MLP (hidden sizes configurable; the paper's policies go up to 1024
 wide) with a tanh output is fitted to the demonstrated actions by mean squared error with Adam,
 each minibatch's standardised features perturbed by Gaussian noise (``input_noise``) so that
 the policy acts like the demonstration also a little off the demonstrated states.
@@ -32,12 +32,15 @@ import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import gymnasium as gym
 import numpy as np
 
 from pianist.files import atomic_dir
+
+if TYPE_CHECKING:
+    from pianist.env.multi_song import MultiSongEnv
 
 FORMAT = "pianist-bc"
 VERSION = 1
@@ -600,24 +603,26 @@ def load_policy(folder: str | Path) -> BCPolicy:
 
 
 def evaluate_multi_song(
-    policy: BCPolicy, env: gym.Env, episodes: int, seed: int = 0
+    policy: BCPolicy, env: MultiSongEnv, episodes: int = 1, seed: int = 0
 ) -> dict[str, list[float]]:
-    """Play ``episodes`` episodes of a :class:`pianist.env.multi_song.MultiSongEnv` (a song
-    drawn per episode, seeded by ``seed``) with ``policy``; returns song -> the F1 of each of
-    its episodes."""
+    """Play every song of a :class:`pianist.env.multi_song.MultiSongEnv` ``episodes`` times
+    with ``policy`` (seeds ``seed``, ``seed + 1``, ...); returns song -> the F1 of each of its
+    episodes. Songs are taken in turn, not drawn: a draw may miss a song, and a deterministic
+    policy's episodes of one song repeat."""
     from pianist.eval.metrics import precision_recall_f1
 
     policy.features.check(env.observation_space)
     scores: dict[str, list[float]] = {}
     for i in range(episodes):
-        obs, info = env.reset(seed=seed if i == 0 else None)
-        pressed, goal = [], []
-        done = False
-        while not done:
-            obs, _, terminated, truncated, step_info = env.step(policy.act(obs))
-            pressed.append(step_info["active_keys"])
-            goal.append(step_info["goal_keys"])
-            done = terminated or truncated
-        f1 = precision_recall_f1(np.array(pressed), np.array(goal))["f1"]
-        scores.setdefault(str(info["song"]), []).append(f1)
+        for index in range(len(env.songs)):
+            obs, info = env.reset(seed=seed + i, options={"song": index})
+            pressed, goal = [], []
+            done = False
+            while not done:
+                obs, _, terminated, truncated, step_info = env.step(policy.act(obs))
+                pressed.append(step_info["active_keys"])
+                goal.append(step_info["goal_keys"])
+                done = terminated or truncated
+            f1 = precision_recall_f1(np.array(pressed), np.array(goal))["f1"]
+            scores.setdefault(str(info["song"]), []).append(f1)
     return scores

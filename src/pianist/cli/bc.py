@@ -112,17 +112,17 @@ def _dataset_setup(dataset: Any) -> tuple[dict[str, Any], list[str]]:
 
 @dataclass(frozen=True)
 class BCEval:
-    """Play a behaviour-cloning policy on several songs, a song drawn per episode (the
-    multi-song environment, seeded), and print each song's mean F1."""
+    """Play a behaviour-cloning policy on several songs in one multi-song environment (the
+    same spaces for every song) and print each song's mean F1."""
 
     policy: tyro.conf.Positional[Annotated[Path, tyro.conf.arg(metavar="DIR")]]
     """The policy's folder (pianist bc train --out)."""
     songs: tuple[str, ...]
     """Songs to draw from (names or files)."""
-    episodes: int = 10
-    """Episodes played in all."""
+    episodes: int = 1
+    """Episodes per song (seeds --seed, --seed + 1, ...)."""
     seed: int = 0
-    """Seed of the song draw."""
+    """Seed of the first episode of each song."""
 
     def run(self) -> None:
         if self.episodes < 1:
