@@ -3,6 +3,7 @@ policies as controllers.
 
 Importing this package does not import JAX; :func:`train` and the agent modules do.
 ``pianist.agents.config`` holds the presets, ``PolicyController`` acts in NumPy.
+``pianist.agents.bc``: behaviour cloning and DAgger, one policy for many songs (docs/bc.md).
 """
 
 from __future__ import annotations
