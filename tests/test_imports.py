@@ -19,6 +19,8 @@ ALLOWED = {
     "eval": {"music", "sim", "env", "control"},
     "media": {"music", "sim", "env", "eval"},
     "agents": {"music", "sim", "env", "control", "eval"},
+    "data": {"music", "sim", "env", "control", "eval", "agents"},
+    "sweep": {"music", "sim", "env", "control", "eval", "media", "agents"},
 }
 
 

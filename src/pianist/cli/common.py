@@ -25,19 +25,11 @@ def require_jax() -> None:
 
 
 def make_controller_from_spec(spec: str) -> Any:
-    """A controller from the --controller spec: policy:RUN_DIR, bc:DIR (a behaviour-cloning
-    policy), or what make_controller takes."""
-    if spec.startswith("policy:"):
-        from pianist.agents import PolicyController
+    """A controller from the --controller spec (:func:`pianist.agents.specs.controller_from_spec`:
+    policy:RUN_DIR, bc:DIR, or what :func:`pianist.control.make_controller` takes)."""
+    from pianist.agents.specs import controller_from_spec
 
-        return PolicyController(spec.removeprefix("policy:"))
-    if spec.startswith("bc:"):
-        from pianist.agents.bc import BCController
-
-        return BCController(spec.removeprefix("bc:"))
-    from pianist.control import make_controller
-
-    return make_controller(spec)
+    return controller_from_spec(spec)
 
 
 def prepare_dir(path: Path) -> None:

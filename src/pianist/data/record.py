@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from pianist.control import NoisyController, make_controller
+from pianist.control import NoisyController
 from pianist.files import atomic_dir
 
 #: The files of one recorded episode's folder.
@@ -123,14 +123,11 @@ def song_provenance(ref: str, song: Any | None = None) -> dict[str, Any]:
 
 
 def episode_controller(spec: str, noise: float) -> Any:
-    """The controller of spec ``spec`` (``policy:RUN_DIR`` or any ``make_controller`` spec),
+    """The controller of spec ``spec`` (:func:`pianist.agents.specs.controller_from_spec`),
     with Gaussian action noise of std ``noise`` when > 0."""
-    if spec.startswith("policy:"):
-        from pianist.agents import PolicyController
+    from pianist.agents.specs import controller_from_spec
 
-        controller: Any = PolicyController(spec.removeprefix("policy:"))
-    else:
-        controller = make_controller(spec)
+    controller = controller_from_spec(spec)
     return NoisyDemonstrator(controller, noise) if noise > 0 else controller
 
 

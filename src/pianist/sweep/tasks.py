@@ -94,13 +94,13 @@ class Task:
 
 
 def _check_controller(spec: str) -> None:
-    from pianist.cli.common import make_controller_from_spec
+    from pianist.agents.specs import controller_from_spec as make_controller_from_spec
 
     make_controller_from_spec(spec)
 
 
 def _run_play(cell: Cell, options: SweepOptions, folder: Path, work: Path) -> dict[str, Any]:
-    from pianist.cli.common import make_controller_from_spec
+    from pianist.agents.specs import controller_from_spec as make_controller_from_spec
     from pianist.eval.session import play
     from pianist.media.results import MediaOptions, write_result
 

@@ -1,0 +1,30 @@
+"""Controllers from their specs, the strings of ``--controller``: the one resolver that the
+command line, sweeps and datasets share.
+
+``policy:RUN_DIR`` (a trained agent), ``bc:DIR`` (a behaviour-cloning policy), or anything
+:func:`pianist.control.make_controller` takes (``planner``, ``refine[:...]``, ``mpc[:...]``,
+``random``, ``zero``, ``replay:ACTIONS.npy``).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+
+def controller_from_spec(spec: str) -> Any:
+    """The controller a ``--controller`` spec names (see the module docstring).
+
+    Raises:
+        ValueError: an unknown spec; FileNotFoundError: a run or policy folder that is missing.
+    """
+    if spec.startswith("policy:"):
+        from pianist.agents.policy import PolicyController
+
+        return PolicyController(spec.removeprefix("policy:"))
+    if spec.startswith("bc:"):
+        from pianist.agents.bc import BCController
+
+        return BCController(spec.removeprefix("bc:"))
+    from pianist.control import make_controller
+
+    return make_controller(spec)
