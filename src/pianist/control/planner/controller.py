@@ -39,9 +39,9 @@ from pianist.sim.scene import SceneOptions
 if TYPE_CHECKING:
     from pianist.music import Song
 
-#: A hand's plan for a song: what ``IKPlanner._plan`` sets (read only once made).
 #: What a hand remembers between steps (see :class:`FingerTargets`).
 _MEMORY = ("pressing", "stuck", "last_tips", "last_key", "unsounded")
+#: A hand's plan for a song: what ``IKPlanner._plan`` sets (read only once made).
 _PLAN_ARRAYS = ("tx_plan", "busy", "skip", "free", "shift_to", "tx_path", "tx_servo")
 #: Plans by (goal frames, scene options, config): a new episode of the same environment
 #: reuses its plan (up to ~1 s for a minute of music) instead of making it again.
