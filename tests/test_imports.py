@@ -20,7 +20,7 @@ ALLOWED = {
     "media": {"music", "sim", "env", "eval"},
     "agents": {"music", "sim", "env", "control", "eval"},
     "data": {"music", "sim", "env", "control", "eval", "agents"},
-    "sweep": {"music", "sim", "env", "control", "eval", "media", "agents"},
+    "sweep": {"music", "sim", "env", "control", "eval", "media", "agents", "data"},
 }
 
 

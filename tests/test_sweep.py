@@ -18,6 +18,7 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from pianist.cli import main
@@ -291,3 +292,56 @@ def test_train_and_eval_cells(tmp_path):
     assert row["preset"] == "fast-small" and row["checkpoint_step"] == 100
     metrics = json.loads((out / CELLS_DIR / cell.id / "metrics.json").read_text())
     assert metrics["f1"] == row["f1"] and metrics["physics"] == "fast"
+
+
+def test_dataset_cells_assemble_into_one_minari_dataset(tmp_path, monkeypatch, capsys):
+    """The dataset task, run as a Ray worker runs a cell: one episode per seed, the first
+    noiseless; the finished cells then make one Minari dataset with `pianist dataset
+    assemble`, the same arrays as the cells recorded."""
+    import minari
+
+    from pianist.data.record import read_episode
+    from pianist.sweep.tasks import EPISODE_DIR
+
+    out = tmp_path / "sweep"
+    cells = expand("dataset", [(SONG, "debug")], ["planner"], ["fast"], [0, 1])
+    options = SweepOptions(noise=0.05, clean_seed=0).as_dict()
+    for cell in cells:
+        record = execute_cell(cell.as_dict(), options, str(out))
+        assert record["status"] == "ok", record["error"]
+    rows = collect_rows(out, cells)
+    assert [row["noise"] for row in rows] == [0.0, 0.05]
+    assert all(0.5 < row["f1"] <= 1.0 for row in rows)
+
+    root = tmp_path / "datasets"
+    code = main(
+        ["dataset", "assemble", str(out), "--out", "pianist/sweep-test-v0", "--root", str(root)]
+    )
+    assert code == 0, capsys.readouterr().err
+    assert "2 episodes" in capsys.readouterr().out
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(root))
+    dataset = minari.load_dataset("pianist/sweep-test-v0")
+    assert dataset.total_episodes == 2
+    metas = list(dataset.storage.get_episode_metadata([0, 1]))
+    assert [(m["seed"], m["noise"]) for m in metas] == [(0, 0.0), (1, 0.05)]
+    for i, cell in enumerate(cells):
+        recorded = read_episode(out / CELLS_DIR / cell.id / EPISODE_DIR)
+        np.testing.assert_array_equal(dataset[i].actions, recorded.actions)
+
+    # Assembling again into the same id, or from a folder without dataset cells, is refused.
+    for args in (
+        [str(out), "--out", "pianist/sweep-test-v0"],
+        [str(tmp_path / "empty"), "--out", "pianist/other-v0"],
+    ):
+        assert main(["dataset", "assemble", *args, "--root", str(root)]) == 1
+        err = capsys.readouterr().err
+        assert err.startswith("pianist: error:") and err.count("\n") == 1
+
+
+def test_dataset_sweep_takes_controllers_not_presets(tmp_path, capsys):
+    args = ["sweep", "--task", "dataset", "--songs", SONG, "--presets", "fast-small"]
+    assert main([*args, "--out", str(tmp_path / "s")]) == 1
+    assert "--presets applies to --task train" in capsys.readouterr().err
+    args = ["sweep", "--task", "dataset", "--songs", SONG, "--noise", "-1", "--list"]
+    assert main([*args, "--out", str(tmp_path / "s")]) == 1
+    assert "--noise must be a std >= 0" in capsys.readouterr().err

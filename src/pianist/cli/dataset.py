@@ -105,11 +105,39 @@ class DatasetInfo:
 
 
 @dataclass(frozen=True)
+class Assemble:
+    """Write the episodes a `pianist sweep --task dataset` recorded (on Ray, on one machine or
+    a cluster) as one Minari dataset."""
+
+    sweep: tyro.conf.Positional[Annotated[Path, tyro.conf.arg(metavar="SWEEP_DIR")]]
+    """The sweep's folder (its --out)."""
+    out: str
+    """The dataset id, (NAMESPACE/)NAME-vN."""
+    root: Annotated[Path | None, _ROOT_HINT] = None
+    """Where datasets are stored (Minari's datasets folder)."""
+
+    def run(self) -> None:
+        from pianist.data.minari_io import default_root
+        from pianist.sweep.datasets import assemble_sweep
+
+        _require_minari()
+        root = self.root if self.root is not None else default_root()
+        prepare_dir(root)
+        report = assemble_sweep(self.sweep, self.out, root)
+        _out(
+            f"wrote {report.path}: {report.episodes} episodes, {report.steps} steps, "
+            f"mean F1 {report.mean_f1:.3f}"
+        )
+
+
+@dataclass(frozen=True)
 class Dataset:
-    """Demonstration datasets in the Farama Minari format: build one, describe one."""
+    """Demonstration datasets in the Farama Minari format: build one, assemble one from a
+    sweep, describe one."""
 
     command: tyro.conf.OmitSubcommandPrefixes[
         Annotated[Build, tyro.conf.subcommand("build")]
+        | Annotated[Assemble, tyro.conf.subcommand("assemble")]
         | Annotated[DatasetInfo, tyro.conf.subcommand("info")]
     ]
 

@@ -22,7 +22,7 @@ _OPTIONAL = _hint("(optional)")
 
 @dataclass(frozen=True)
 class Sweep:
-    """Run play, train or eval over a grid of songs x controllers/presets/runs x physics x
+    """Run play, train, eval or dataset over a grid of songs x controllers/presets/runs x physics x
     seeds, each cell a Ray task (a local Ray by default, a cluster with --address).
 
     Writes OUT/cells/<cell id>/ per cell (whole, or not at all), OUT/results.csv and
@@ -30,8 +30,9 @@ class Sweep:
     variant, per-song bars). A rerun skips finished cells (failed ones run again).
     """
 
-    task: Literal["play", "train", "eval"] = "play"
-    """What each cell runs (the demonstration datasets are not a task yet)."""
+    task: Literal["play", "train", "eval", "dataset"] = "play"
+    """What each cell runs: dataset records one demonstration episode per cell (then
+    `pianist dataset assemble OUT` writes them as one Minari dataset)."""
     suite: Annotated[tuple[str, ...], _OPTIONAL] = ()
     """Suites whose songs the grid holds: debug, robopianist-debug, open-etude-12, etude-12,
     repertoire-150."""
@@ -40,7 +41,7 @@ class Sweep:
     folder: Annotated[tuple[Path, ...], _OPTIONAL] = ()
     """Folders whose MIDI files (.mid, .midi) the grid holds."""
     controllers: Annotated[tuple[str, ...], _hint("(default: planner)")] = ()
-    """play: controller specs, as play --controller takes them."""
+    """play, dataset: controller specs, as play --controller takes them."""
     presets: Annotated[tuple[str, ...], _hint("(default: droq-paper)")] = ()
     """train: training presets."""
     runs: Annotated[tuple[Path, ...], _hint("(required for eval)")] = ()
@@ -49,7 +50,7 @@ class Sweep:
         tuple[Literal["faithful", "fast"], ...],
         _hint("(default: the controller's own, else faithful)"),
     ] = ()
-    """play: physics presets."""
+    """play, dataset: physics presets."""
     seeds: tuple[int, ...] = (0,)
     """Seeds of the episodes (play, eval) or training runs (train)."""
     out: Path = Path("runs/sweep")
@@ -72,6 +73,8 @@ class Sweep:
     """train: total environment steps of each run."""
     minutes: Annotated[float | None, _OPTIONAL] = None
     """train: wall-clock budget of each run."""
+    noise: float = 0.02
+    """dataset: std of the action noise of every seed but the first (0: none)."""
     list_only: Annotated[bool, tyro.conf.arg(name="list")] = False
     """Print the grid's cells (id and whether finished) and stop, without Ray."""
 
@@ -88,7 +91,11 @@ class Sweep:
         if self.minutes is not None and not (math.isfinite(self.minutes) and self.minutes > 0):
             raise CliError(f"--minutes must be a positive number, not {self.minutes}")
         if self.physics and not TASKS[self.task].takes_physics:
-            raise CliError(f"--physics applies to --task play (a {self.task} cell's is its own)")
+            raise CliError(
+                f"--physics applies to --task play or dataset (a {self.task} cell's is its own)"
+            )
+        if not (math.isfinite(self.noise) and self.noise >= 0):
+            raise CliError(f"--noise must be a std >= 0, not {self.noise}")
         songs = songs_of(self.suite, self.songs, self.folder)
         physics: tuple[str | None, ...] = self.physics or (None,)
         cells = expand(self.task, songs, variants, physics, self.seeds)
@@ -106,6 +113,8 @@ class Sweep:
             audio=self.audio,
             steps=self.steps,
             minutes=self.minutes,
+            noise=self.noise,
+            clean_seed=min(self.seeds),
         )
         report = run_sweep(
             cells,
@@ -127,12 +136,14 @@ class Sweep:
     def _variants(self) -> list[str]:
         given: dict[str, list[str]] = {
             "play": list(self.controllers),
+            "dataset": list(self.controllers),
             "train": list(self.presets),
             "eval": [str(run) for run in self.runs],
         }
         flags = {"play": "--controllers", "train": "--presets", "eval": "--runs"}
+        uses = {"dataset": "play"}.get(self.task, self.task)  # dataset takes --controllers
         for task, variants in given.items():
-            if variants and task != self.task:
+            if task != "dataset" and variants and task != uses:
                 raise CliError(f"{flags[task]} applies to --task {task}, not {self.task}")
         if given[self.task]:
             return given[self.task]

@@ -8,10 +8,14 @@ A task turns a :class:`~pianist.sweep.grid.Cell` into files in a folder and a di
   pianoroll.png, and the audio with ``audio=True``);
 - ``train``: :func:`pianist.agents.train` with the cell's preset and seed, the run kept in
   ``run/`` (a worker killed mid-run resumes from the run's newest checkpoint);
-- ``eval``: a trained run's policy (the variant is its folder) played as ``pianist eval`` does.
+- ``eval``: a trained run's policy (the variant is its folder) played as ``pianist eval`` does;
+- ``dataset``: one demonstration episode of the cell's song with its controller, recorded by
+  :func:`pianist.data.record.record_episode` into ``episode/`` (every seed but the grid's
+  first adds action noise, as ``pianist dataset build`` does for episodes after the first);
+  :func:`pianist.sweep.datasets.assemble_sweep` writes a sweep's episodes as one Minari
+  dataset (``pianist dataset assemble``).
 
-``dataset`` (the demonstration datasets of a later issue) is not built yet; a new task is one
-more :class:`Task` in :data:`TASKS`.
+A new task is one more :class:`Task` in :data:`TASKS`.
 
 Every cell's folder appears whole (:func:`pianist.files.atomic_dir`) with ``cell.json``, its
 record, written last: a folder that exists is a finished cell. An exception in the task is a
@@ -63,6 +67,10 @@ class SweepOptions:
     """train: total environment steps of each run."""
     minutes: float | None = None
     """train: wall-clock budget of each run."""
+    noise: float = 0.02
+    """dataset: std of the action noise of every seed but ``clean_seed`` (0: none)."""
+    clean_seed: int = 0
+    """dataset: the seed recorded without noise (the grid's first)."""
     extra: dict[str, Any] = field(default_factory=dict)
     """Options of tasks added later."""
 
@@ -181,11 +189,34 @@ def _run_eval(cell: Cell, options: SweepOptions, folder: Path, work: Path) -> di
     return {**result.metrics, **extra}
 
 
+#: The folder of a dataset cell that holds its recorded episode.
+EPISODE_DIR = "episode"
+
+
+def _run_dataset(cell: Cell, options: SweepOptions, folder: Path, work: Path) -> dict[str, Any]:
+    from pianist.data.record import read_episode, record_episode
+
+    noise = 0.0 if cell.seed == options.clean_seed else options.noise
+    record_episode(
+        cell.song,
+        cell.variant,
+        cell.seed,
+        cell.physics,
+        folder / EPISODE_DIR,
+        noise=noise,
+        fingering=options.fingering,
+    )
+    facts = read_episode(folder / EPISODE_DIR).metadata
+    keep = ("precision", "recall", "f1", "sustain_f1", "steps", "physics")
+    return {k: facts[k] for k in keep if k in facts} | {"noise": noise, "controller": cell.variant}
+
+
 #: The tasks a sweep can run, by name.
 TASKS: dict[str, Task] = {
     "play": Task("play", "controller", "planner", True, _check_controller, _run_play),
     "train": Task("train", "preset", "droq-paper", False, _check_preset, _run_train),
     "eval": Task("eval", "run", "", False, _check_run, _run_eval),
+    "dataset": Task("dataset", "controller", "planner", True, _check_controller, _run_dataset),
 }
 
 
