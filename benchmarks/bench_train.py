@@ -29,7 +29,8 @@ Examples::
     nohup python benchmarks/bench_train.py learn --preset fast --minutes 30 --out runs/fast &
     nohup taskset -c 1 python benchmarks/bench_train.py learn --preset residual-anchored \
         --song c-major-chords --minutes 30 --out runs/anchored-chords &
-    python benchmarks/bench_train.py report runs/fast runs/droq-paper --json learn.json
+    python benchmarks/bench_train.py report runs/fast runs/droq-paper --json learn.json \
+        --plot curves.png
 
 Practising the hard parts (windows) against whole-piece episodes, one core each::
 
@@ -328,6 +329,35 @@ def evaluate_policies(
     return out
 
 
+def plot_curves(rows: list[dict], path: str) -> None:
+    """F1 against wall-clock minutes, one line per run (preset and song), the planner's F1 as a
+    dashed line of the same colour for residual runs; written to ``path`` (PNG)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(8, 4.5))
+    for i, row in enumerate(rows):
+        colour = f"C{i % 10}"
+        minutes = [w / 60 for w, _, _ in row["curve"]]
+        f1 = [f for _, _, f in row["curve"]]
+        ax.plot(
+            minutes, f1, marker="o", ms=3, color=colour, label=f"{row['preset']} ({row['song']})"
+        )
+        if "planner_f1" in row:
+            ax.axhline(row["planner_f1"], color=colour, ls="--", lw=1, alpha=0.7)
+    ax.set_xlabel("wall-clock time (min)")
+    ax.set_ylabel("F1 (one deterministic evaluation episode)")
+    ax.set_ylim(0, 1)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8, loc="lower right")
+    ax.set_title("Learning curves (dashed: the planner alone, for residual runs)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="mode", required=True)
@@ -350,6 +380,7 @@ def main() -> None:
     p.add_argument("--noise", type=float, default=0.005, help="action noise of the robust F1")
     p.add_argument("--episodes", type=int, default=10, help="noisy episodes (0: skip)")
     p.add_argument("--json")
+    p.add_argument("--plot", help="also plot F1 against wall-clock time to this PNG")
     args = parser.parse_args()
     if args.mode == "speed":
         rows = speed(args.presets, args.song, args.repeats)
@@ -366,6 +397,8 @@ def main() -> None:
         return
     else:
         rows = report(args.runs, args.marks, args.noise, args.episodes)
+        if args.plot:
+            plot_curves(rows, args.plot)
     if args.json:
         Path(args.json).write_text(json.dumps(rows, indent=2, default=float) + "\n")
 
