@@ -14,6 +14,7 @@ commands (:mod:`forearm`), the wrist's, each finger's joint angles (:mod:`target
 from __future__ import annotations
 
 import weakref
+from collections.abc import Callable
 from functools import partial
 from typing import TYPE_CHECKING, Any
 
@@ -202,14 +203,7 @@ class IKPlanner(BaseController):
         """
         cfg = self.config
         hands = sorted(self.hands, key=lambda h: h.side != "right")
-        plan = partial(
-            Hand.plan_piece,
-            goal=goal,
-            key_point=self.key_point,
-            dt=self.dt,
-            costs=cfg.hand_plan,
-            refinger=refinger,
-        )
+        plan = self._piece_planner(goal, refinger)
         plan(hands[0])
         if len(hands) == 2:
             first, second = hands
@@ -227,6 +221,18 @@ class IKPlanner(BaseController):
             mine = hand.key_fingers >= 0
             self.fingers[mine] = hand.key_fingers[mine] + hand.finger_offset
             hand.skip = goal.keys & ~(hand.key_fingers >= 0) & hand.own_keys(goal)
+
+    def _piece_planner(self, goal, refinger: bool) -> Callable[..., None]:
+        """``Hand.plan_piece`` with this song's goal, key points, step and plan weights: call
+        it with a hand and the per-call options (``take``, ``drop``, ``extra_cost``)."""
+        return partial(
+            Hand.plan_piece,
+            goal=goal,
+            key_point=self.key_point,
+            dt=self.dt,
+            costs=self.config.hand_plan,
+            refinger=refinger,
+        )
 
     def _plan_split(self, goal) -> None:
         """Both hands' whole-piece plans for the keys the joint plan gives each
@@ -255,14 +261,7 @@ class IKPlanner(BaseController):
             self.dt,
             costs,
         )
-        plan = partial(
-            Hand.plan_piece,
-            goal=goal,
-            key_point=self.key_point,
-            dt=self.dt,
-            costs=cfg.hand_plan,
-            refinger=True,
-        )
+        plan = self._piece_planner(goal, refinger=True)
         mine = {right.side: split == 0, left.side: split == 1}
         order = ((right, None), (left, right), (right, left))
         for hand, other in order:
