@@ -141,22 +141,24 @@ def test_bad_input_is_refused_in_one_line(tmp_path, capsys, args, message):
 
 
 def test_folder_songs_and_their_provenance(tmp_path):
-    from pianist.music import get_song, write_midi
+    from pianist.music import get_song, load_song, write_midi, write_pig
 
     folder = tmp_path / "midi"
     folder.mkdir()
     write_midi(get_song("c-major-chords"), folder / "chords.mid")
     write_midi(get_song("twinkle-twinkle"), folder / "twinkle.mid")
-    (folder / "notes.txt").write_text("not a song of the folder")
+    write_pig(get_song("c-major-scale-right"), folder / "scale.txt")  # PIG: fingered
+    (folder / "notes.md").write_text("not a song of the folder")
     refs = resolve_songs([str(folder)])
-    assert [Path(r).name for r in refs] == ["chords.mid", "twinkle.mid"]
+    assert [Path(r).name for r in refs] == ["chords.mid", "scale.txt", "twinkle.mid"]
+    assert load_song(refs[1]).notes == get_song("c-major-scale-right").notes
     file_info = song_provenance(refs[0])
     assert file_info["suite"] is None and len(file_info["sha256"]) == 64
     assert file_info["fingering"].startswith("automatic")  # MIDI files carry no fingers
     piece = song_provenance("bach-prelude-c-major-bwv846")
     assert piece["suite"] == "open-etude-12" and piece["composer"] == "Johann Sebastian Bach"
     assert "licence" in piece and "fingering" in piece
-    with pytest.raises(ValueError, match="no MIDI files"):
+    with pytest.raises(ValueError, match="no song files"):
         resolve_songs([str(tmp_path)])
 
 

@@ -49,14 +49,14 @@ def _rows(out: Path) -> list[dict[str, str]]:
 def test_grid_expands_song_by_song_then_variant_physics_seed(tmp_path):
     folder = tmp_path / "midi"
     folder.mkdir()
-    for name in ("b.mid", "a.MIDI", "notes.txt"):
+    for name in ("b.mid", "a.MIDI", "c.txt", "notes.md"):
         (folder / name).write_bytes(b"")
     songs = songs_of(["debug"], ["twinkle-twinkle", "extra-song"], [folder])
     debug = list_songs("debug")
-    # Suites first, then the list, then the folder's MIDI files sorted; each song once.
-    files = [str(folder / "a.MIDI"), str(folder / "b.mid")]
+    # Suites first, then the list, then the folder's song files (MIDI, PIG) sorted; each once.
+    files = [str(folder / "a.MIDI"), str(folder / "b.mid"), str(folder / "c.txt")]
     assert [s for s, _ in songs] == [*debug, "extra-song", *files]
-    assert [suite for _, suite in songs] == ["debug"] * len(debug) + ["songs", "midi", "midi"]
+    assert [suite for _, suite in songs] == ["debug"] * len(debug) + ["songs"] + ["midi"] * 3
 
     cells = expand("play", songs[:2], ["planner", "zero"], ["faithful", "fast"], [0, 1, 2])
     assert len(cells) == 2 * 2 * 2 * 3
@@ -69,7 +69,7 @@ def test_grid_expands_song_by_song_then_variant_physics_seed(tmp_path):
     assert len(expand("play", songs[:1], ["zero", "zero"], [None], [0, 0, 1])) == 2
     with pytest.raises(ValueError, match="at least one seed"):
         expand("play", songs, ["zero"], [None], [])
-    with pytest.raises(ValueError, match="no MIDI file"):
+    with pytest.raises(ValueError, match="no song file"):
         songs_of(folders=[tmp_path])
     with pytest.raises(ValueError, match="unknown suite"):
         songs_of(["no-such-suite"])

@@ -39,7 +39,7 @@ class Sweep:
     songs: Annotated[tuple[str, ...], _OPTIONAL] = ()
     """Songs by name or file (.mid, PIG .txt)."""
     folder: Annotated[tuple[Path, ...], _OPTIONAL] = ()
-    """Folders whose MIDI files (.mid, .midi) the grid holds."""
+    """Folders whose song files (.mid, .midi, PIG .txt) the grid holds."""
     controllers: Annotated[tuple[str, ...], _hint("(default: planner)")] = ()
     """play, dataset: controller specs, as play --controller takes them."""
     presets: Annotated[tuple[str, ...], _hint("(default: droq-paper)")] = ()

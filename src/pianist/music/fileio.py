@@ -23,3 +23,15 @@ def require_file(path: Path, error: type[MusicError], kind: str) -> int:
     if size == 0:
         raise error(f"{path}: {kind} is empty (0 bytes)")
     return size
+
+
+#: Suffixes of the song files a folder of songs holds: MIDI, and PIG fingering files (.txt).
+SONG_FILE_SUFFIXES = (".mid", ".midi", ".txt")
+
+
+def song_files(folder: Path) -> list[Path]:
+    """The song files (MIDI or PIG, :data:`SONG_FILE_SUFFIXES`) directly in ``folder``, sorted
+    by name."""
+    return sorted(
+        p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in SONG_FILE_SUFFIXES
+    )

@@ -23,8 +23,6 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
-#: Suffixes of the files a song folder contributes (MIDI; PIG fingering files are .txt).
-SONG_FILE_SUFFIXES = (".mid", ".midi")
 #: The suite name of songs given one by one (``--songs``).
 LIST_SUITE = "songs"
 
@@ -106,13 +104,14 @@ def songs_of(
     suites: Sequence[str] = (), songs: Sequence[str] = (), folders: Sequence[str | Path] = ()
 ) -> list[tuple[str, str]]:
     """The (song, suite) pairs of a grid: each suite's songs, then ``songs``, then each folder's
-    MIDI files (sorted by name), each song once (its first place wins).
+    song files (MIDI or PIG, sorted by name), each song once (its first place wins).
 
     Raises:
         ValueError: an unknown suite, a folder that does not exist, or no song at all.
         PigDatasetError: a PIG suite before ``pianist import-pig`` has run.
     """
     from pianist.music import list_songs
+    from pianist.music.fileio import song_files
 
     found: list[tuple[str, str]] = []
     for suite in suites:
@@ -122,11 +121,9 @@ def songs_of(
         path = Path(folder)
         if not path.is_dir():
             raise ValueError(f"song folder {path} does not exist or is not a folder")
-        files = sorted(
-            p for p in path.iterdir() if p.is_file() and p.suffix.lower() in SONG_FILE_SUFFIXES
-        )
+        files = song_files(path)
         if not files:
-            raise ValueError(f"song folder {path} holds no MIDI file (.mid, .midi)")
+            raise ValueError(f"song folder {path} holds no song file (.mid, .midi, PIG .txt)")
         suite = path.resolve().name or str(path)
         found.extend((str(p), suite) for p in files)
     seen: set[str] = set()
