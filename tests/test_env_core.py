@@ -608,3 +608,52 @@ def test_a_fork_is_independent_of_its_source():
     bigger.reset(seed=0)
     with pytest.raises(ValueError, match="another environment"):
         env.restore(bigger.snapshot())
+
+
+# ----------------------------------------------------------------------- finger targets
+
+# The right index plays C4, then E4 after a gap longer than the look-ahead; the left index C3.
+TARGETS = Song(
+    (
+        Note(C4, 0.0, 0.2, finger=1),
+        Note(C3, 0.1, 0.3, finger=6),
+        Note(C4 + 4, 0.6, 0.7, finger=1),
+    ),
+    name="targets",
+)
+
+
+def test_finger_targets_point_each_finger_to_its_next_key_within_the_lookahead() -> None:
+    L = 3
+    env = PianoEnv(TARGETS, lookahead=L, finger_targets=True)
+    assert "finger_targets" not in PianoEnv(TARGETS, lookahead=L).observation_space.spaces
+    frames = goal_frames(TARGETS, dt=0.05)
+    T = frames.num_frames
+    obs, _ = env.reset(seed=0)
+    rng = np.random.default_rng(0)
+    seen_gap = seen_hold = False
+    for t in range(T):
+        assert env.observation_space.contains(obs)
+        tips = env.data.site_xpos[env._finger_sites]
+        for finger in range(10):
+            # Search forwards for the finger's next frame (the env scans backwards).
+            due = [
+                (s, k)
+                for s in range(t, min(T, t + L + 1))
+                for k in range(88)
+                if frames.keys[s, k] and frames.fingers[s, k] == finger
+            ]
+            row = obs["finger_targets"][finger]
+            if not due:
+                np.testing.assert_array_equal(row, 0.0, err_msg=f"t={t} finger {finger}")
+                seen_gap |= finger == 1
+                continue
+            s, key = due[0]
+            site = env.data.site_xpos[env.scene.key_sites[key]]
+            np.testing.assert_allclose(row[:3], site - tips[finger], atol=1e-6)
+            assert row[3] == pytest.approx((s - t) / L)
+            onset = s == 0 or not frames.keys[s - 1, key]
+            assert row[4] == float(onset) and row[5] == 1.0
+            seen_hold |= not onset
+        obs, *_ = env.step(rng.uniform(-0.3, 0.3, env.action_space.shape).astype(np.float32))
+    assert seen_gap and seen_hold  # both cases were met

@@ -32,7 +32,7 @@ class Build:
 
     songs: tuple[str, ...]
     """Suites (debug, robopianist-debug, open-etude-12, etude-12, repertoire-150), folders of
-    MIDI files (fingered automatically), or songs by name or file."""
+    song files (MIDI, fingered automatically, or PIG), or songs by name or file."""
     controller: str = "planner"
     """planner, refine, mpc, random, zero, or policy:RUN_DIR (a trained policy)."""
     episodes: int = 1
@@ -51,6 +51,9 @@ class Build:
     """Seed of each song's first episode."""
     workers: int = 1
     """Episodes recorded at once, each in its own process."""
+    finger_targets: bool = False
+    """Observe the finger_targets entry too: where each finger's next key is, from the
+    fingertip (what the shipped generalist reads)."""
 
     def run(self) -> None:
         from pianist.data.build import BuildSettings, build_dataset
@@ -64,7 +67,11 @@ class Build:
         root = self.root if self.root is not None else default_root()
         prepare_dir(root)
         settings = BuildSettings(
-            controller=self.controller, physics=self.physics, noise=self.noise, seed=self.seed
+            controller=self.controller,
+            physics=self.physics,
+            noise=self.noise,
+            seed=self.seed,
+            finger_targets=self.finger_targets,
         )
         build_dataset(
             self.songs,

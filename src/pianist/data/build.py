@@ -47,6 +47,12 @@ class BuildSettings:
     noise: float = DEFAULT_NOISE
     seed: int = 0
     fingering: str = "auto"
+    finger_targets: bool = False
+    """Record the ``finger_targets`` observation entry too (:class:`pianist.env.PianoEnv`)."""
+
+    def env_options(self) -> dict[str, bool]:
+        """The :class:`pianist.env.PianoEnv` options these settings add to the controller's."""
+        return {"finger_targets": True} if self.finger_targets else {}
 
 
 @dataclass(frozen=True)
@@ -75,13 +81,15 @@ class BuildReport:
 
 
 def resolve_songs(entries: tuple[str, ...] | list[str]) -> list[str]:
-    """The songs of ``entries``, each a suite name, a folder of MIDI files or one song.
+    """The songs of ``entries``, each a suite name, a folder of song files (MIDI or
+    PIG) or one song.
 
     Raises:
         ValueError: nothing given, an empty folder, or an entry that is none of these.
         MusicError: a song cannot be loaded.
     """
     from pianist.music import SUITES, MusicError, list_songs, load_song
+    from pianist.music.fileio import song_files
 
     if not entries:
         raise ValueError("no songs: give --songs a suite, a folder of MIDI files or a song")
@@ -91,9 +99,9 @@ def resolve_songs(entries: tuple[str, ...] | list[str]) -> list[str]:
         if entry in SUITES:
             refs.extend(list_songs(entry))
         elif path.is_dir():
-            files = sorted(p for p in path.iterdir() if p.suffix.lower() in (".mid", ".midi"))
+            files = song_files(path)
             if not files:
-                raise ValueError(f"folder {path} holds no MIDI files (.mid, .midi)")
+                raise ValueError(f"folder {path} holds no song files (.mid, .midi, PIG .txt)")
             refs.extend(str(p) for p in files)
         else:
             try:
@@ -226,7 +234,8 @@ def _claim_work_dir(work: Path, settings: BuildSettings) -> None:
     path = work / SETTINGS_FILE
     wanted = asdict(settings)
     if path.is_file():
-        found = json.loads(path.read_text(encoding="utf-8"))
+        # A setting added since the folder was made counts as its default.
+        found = {**asdict(BuildSettings()), **json.loads(path.read_text(encoding="utf-8"))}
         if found != wanted:
             changed = ", ".join(
                 f"{key} {found.get(key)!r} -> {value!r}"
@@ -251,6 +260,7 @@ def _record(task: EpisodeTask, settings: BuildSettings) -> Path:
         task.out_dir,
         noise=task.noise,
         fingering=settings.fingering,
+        env_options=settings.env_options(),
     )
 
 
