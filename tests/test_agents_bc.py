@@ -114,6 +114,14 @@ def test_dagger_labels_are_the_planners_actions_in_the_states_the_policy_visits(
     _, history = bc.dagger(data, [SONG], 1, config, dict(ENV_OPTIONS))
     assert len(data.x) == before + T and history[0]["steps"] == before + T
     assert 0.0 <= history[0]["f1"][SONG] <= 1.0
+    # Songs played in worker processes give the same rollouts, in song order.
+    songs = [SONG, "twinkle-twinkle"]
+    alone = list(bc.labelled_rollouts(policy, songs, seed=0))
+    pooled = list(bc.labelled_rollouts(policy, songs, seed=0, workers=2))
+    assert [r.song for r in pooled] == [r.song for r in alone] == songs
+    for a, b in zip(alone, pooled, strict=True):
+        np.testing.assert_array_equal(a.x, b.x)
+        np.testing.assert_array_equal(a.labels, b.labels)
 
 
 def test_multi_song_env_samples_every_song_with_the_same_spaces():

@@ -487,6 +487,26 @@ def labelled_rollout(policy: BCPolicy, song: Any, seed: int = 0, expert: Any = N
     return Rollout(name, np.array(xs), np.array(labels), np.array(actions), f1)
 
 
+def labelled_rollouts(
+    policy: BCPolicy, songs: Sequence[Any], seed: int, workers: int = 1
+) -> Iterable[Rollout]:
+    """:func:`labelled_rollout` of each song (seed ``seed``), in song order; with ``workers``
+    > 1 that many songs are played at once, each in its own spawned process (the policy is
+    NumPy: it pickles)."""
+    if workers <= 1 or len(songs) <= 1:
+        for song in songs:
+            yield labelled_rollout(policy, song, seed=seed)
+        return
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    context = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(max_workers=min(workers, len(songs)), mp_context=context) as pool:
+        futures = [pool.submit(labelled_rollout, policy, song, seed) for song in songs]
+        for future in futures:
+            yield future.result()
+
+
 def dagger(
     data: Demonstrations,
     songs: Sequence[Any],
@@ -495,6 +515,7 @@ def dagger(
     env_options: Mapping[str, Any] | None = None,
     log: Log | None = None,
     trained: tuple[BCPolicy, Trainer] | None = None,
+    workers: int = 1,
 ) -> tuple[BCPolicy, list[dict[str, Any]]]:
     """Behaviour cloning, then ``rounds`` DAgger rounds on ``songs``.
 
@@ -504,6 +525,7 @@ def dagger(
     feature standardisation stays the demonstrations'). Returns the final policy and one row
     per round: round, the F1 of each song as the round's policy played it, steps of data.
     ``trained``: a policy already trained on ``data`` and its trainer (skips the first fit).
+    ``workers``: songs played at once, each in its own process (:func:`labelled_rollouts`).
     """
     say = log or (lambda _line: None)
     if rounds < 0:
@@ -514,8 +536,7 @@ def dagger(
     history: list[dict[str, Any]] = []
     for r in range(rounds):
         f1 = {}
-        for song in songs:
-            rollout = labelled_rollout(policy, song, seed=r)
+        for rollout in labelled_rollouts(policy, songs, r, workers):
             if rollout.labels.shape[1] != data.y.shape[1]:
                 raise ValueError(
                     f"the planner's actions have {rollout.labels.shape[1]} values, the "

@@ -43,6 +43,8 @@ class BCTrain:
     """Std of the noise added to the standardised features of each minibatch (0: none)."""
     seed: int = 0
     """Seed of the weights and the minibatches."""
+    workers: int = 1
+    """Songs DAgger plays at once, each in its own process."""
 
     def run(self) -> None:
         import importlib.util
@@ -53,6 +55,8 @@ class BCTrain:
         for name, value in (("--steps", self.steps), ("--batch-size", self.batch_size)):
             if value < 1:
                 raise CliError(f"{name} must be >= 1, not {value}")
+        if self.workers < 1:
+            raise CliError(f"--workers must be >= 1, not {self.workers}")
         if self.dagger_rounds < 0:
             raise CliError(f"--dagger-rounds must be >= 0, not {self.dagger_rounds}")
         if not self.hidden or min(self.hidden) < 1:
@@ -81,7 +85,9 @@ class BCTrain:
             f"{self.dataset}: {len(data.x)} steps, {data.features.dim} features, "
             f"{data.y.shape[1]} actions; environment {options}"
         )
-        policy, history = bc.dagger(data, songs, self.dagger_rounds, config, options, log=out)
+        policy, history = bc.dagger(
+            data, songs, self.dagger_rounds, config, options, log=out, workers=self.workers
+        )
         bc.save_policy(
             policy,
             self.out,
