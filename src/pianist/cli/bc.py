@@ -113,8 +113,6 @@ def _dataset_setup(dataset: Any) -> tuple[dict[str, Any], list[str]]:
     physics = {str(m["physics"]) for m in metas if "physics" in m}
     if len(physics) == 1:
         options["physics"] = physics.pop()
-    if settings.get("finger_targets"):  # an extra observation it recorded
-        options["finger_targets"] = True
     return options, songs
 
 

@@ -51,9 +51,6 @@ class Build:
     """Seed of each song's first episode."""
     workers: int = 1
     """Episodes recorded at once, each in its own process."""
-    finger_targets: bool = False
-    """Observe the finger_targets entry too: where each finger's next key is, from the
-    fingertip (what the shipped generalist reads)."""
 
     def run(self) -> None:
         from pianist.data.build import BuildSettings, build_dataset
@@ -67,11 +64,7 @@ class Build:
         root = self.root if self.root is not None else default_root()
         prepare_dir(root)
         settings = BuildSettings(
-            controller=self.controller,
-            physics=self.physics,
-            noise=self.noise,
-            seed=self.seed,
-            finger_targets=self.finger_targets,
+            controller=self.controller, physics=self.physics, noise=self.noise, seed=self.seed
         )
         build_dataset(
             self.songs,

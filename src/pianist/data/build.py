@@ -47,12 +47,6 @@ class BuildSettings:
     noise: float = DEFAULT_NOISE
     seed: int = 0
     fingering: str = "auto"
-    finger_targets: bool = False
-    """Record the ``finger_targets`` observation entry too (:class:`pianist.env.PianoEnv`)."""
-
-    def env_options(self) -> dict[str, bool]:
-        """The :class:`pianist.env.PianoEnv` options these settings add to the controller's."""
-        return {"finger_targets": True} if self.finger_targets else {}
 
 
 @dataclass(frozen=True)
@@ -234,8 +228,7 @@ def _claim_work_dir(work: Path, settings: BuildSettings) -> None:
     path = work / SETTINGS_FILE
     wanted = asdict(settings)
     if path.is_file():
-        # A setting added since the folder was made counts as its default.
-        found = {**asdict(BuildSettings()), **json.loads(path.read_text(encoding="utf-8"))}
+        found = json.loads(path.read_text(encoding="utf-8"))
         if found != wanted:
             changed = ", ".join(
                 f"{key} {found.get(key)!r} -> {value!r}"
@@ -260,7 +253,6 @@ def _record(task: EpisodeTask, settings: BuildSettings) -> Path:
         task.out_dir,
         noise=task.noise,
         fingering=settings.fingering,
-        env_options=settings.env_options(),
     )
 
 

@@ -158,7 +158,6 @@ def record_episode(
     *,
     noise: float = 0.0,
     fingering: str = "auto",
-    env_options: dict[str, Any] | None = None,
 ) -> Path:
     """Play ``song`` once and write the episode's arrays and facts to the folder ``out_dir``.
 
@@ -174,7 +173,6 @@ def record_episode(
         noise: std of Gaussian noise added to each action (action units, clipped to [-1, 1]);
             0 plays the controller as it is.
         fingering: how the song is fingered (:func:`pianist.music.load_song`).
-        env_options: further :class:`pianist.env.PianoEnv` options (extra observations).
     Returns:
         ``out_dir`` as a Path.
     Raises:
@@ -194,7 +192,6 @@ def record_episode(
         physics=physics,
         seed=seed,
         record_observations=True,
-        env_options=env_options,
     )
     record = episode_record(result, song_ref=song, controller_spec=controller_spec, noise=noise)
     out = Path(out_dir)

@@ -52,10 +52,6 @@ class EnvConfig:
     """"assigned": each due key's labelled finger is pulled to it (the paper); "optimal": the
     fingertips are matched to the due keys by a minimum-distance assignment each step, so no
     fingering labels are needed (RP1M; facts page section 3)."""
-    finger_targets: bool = False
-    """Add the observation entry ``finger_targets`` (10, 6): for each finger, where its next
-    key is from its fingertip and when (see :class:`pianist.env.PianoEnv`). Off by default:
-    the paper's observation does not have it."""
     scene: SceneOptions = field(default_factory=SceneOptions)
     rewards: RewardWeights = field(default_factory=RewardWeights)
 
@@ -106,7 +102,6 @@ def make_config(
     control_timestep_s: float = C.CONTROL_TIMESTEP_S,
     rewards: RewardWeights | None = None,
     fingering_reward: str = "assigned",
-    finger_targets: bool = False,
 ) -> EnvConfig:
     """Flat keyword options -> :class:`EnvConfig` (what ``pianist.make_env`` accepts)."""
     return EnvConfig(
@@ -116,7 +111,6 @@ def make_config(
         randomize_hand_positions=randomize_hand_positions,
         initial_buffer_s=initial_buffer_s,
         fingering_reward=fingering_reward,
-        finger_targets=finger_targets,
         scene=SceneOptions(
             hands=hands,  # type: ignore[arg-type]
             physics=physics,

@@ -17,17 +17,7 @@ key                 shape         unit    meaning
 ``lh_fingertips``   (5, 3)        m       the same for the left hand
 ``rh_forearm``      (3,)          m       forearm root position (world frame)
 ``lh_forearm``      (3,)          m       the same for the left hand
-``finger_targets``  (10, 6)       m, -    only with ``finger_targets=True``: per finger
-                                          (as ``fingers_due``), its next key within the
-                                          look-ahead: the key's site minus the fingertip
-                                          (x, y, z), frames until it is due / L, 1 if it
-                                          is a new strike, 1 if there is such a key
 ==================  ============  ======  ===================================================
-
-``finger_targets`` says what the fingering asks of each finger relative to where the finger
-is, the same for every key, so that a policy on it can carry what it learned on one key to
-another (the one-hot ``goal`` cannot). Rows of fingers with no key due within the look-ahead,
-or of an absent hand, are zero.
 
 The joint count is 23 with the reduced action space (21 hand joints + 2 forearm slides) and
 26 without; extra forearm DoFs add to it. One-hand scenes have only that hand's entries.
@@ -233,49 +223,10 @@ class PianoEnv(gym.Env):
             sites = self._finger_sites[fingers[keys]]
             present = sites >= 0
             self._fingering_sites.append((sites[present], self.scene.key_sites[keys[present]]))
-        if self.config.finger_targets:
-            self._setup_finger_targets()
         if self.config.fingering_reward == "optimal":
             # Label-free: every fingertip of the scene may take any due key.
             tips = self._finger_sites[self._finger_sites >= 0]
             self._fingering_sites = [(tips, self.scene.key_sites[keys]) for keys in self._due_keys]
-
-    def _setup_finger_targets(self) -> None:
-        """Per frame t and finger f, the key f plays next at a frame >= t (``_next_key``, -1
-        none), that frame, and whether it is a new strike there, for ``finger_targets``."""
-        goal = self.goal
-        T = goal.num_frames
-        key_of = np.full((T, 10), -1, dtype=np.intp)  # the key finger f is due on at frame t
-        t_idx, k_idx = np.nonzero(goal.keys & (goal.fingers >= 0))
-        key_of[t_idx, goal.fingers[t_idx, k_idx]] = k_idx
-        onset = np.zeros((T, 10), dtype=bool)
-        held_before = np.zeros_like(goal.keys)
-        held_before[1:] = goal.keys[:-1]
-        onset[t_idx, goal.fingers[t_idx, k_idx]] = ~held_before[t_idx, k_idx]
-        next_key = np.full((T + 1, 10), -1, dtype=np.intp)
-        next_frame = np.full((T + 1, 10), T + self.config.lookahead + 1, dtype=np.intp)
-        next_onset = np.zeros((T + 1, 10), dtype=bool)
-        for t in range(T - 1, -1, -1):  # backwards: the nearest frame >= t wins
-            due = key_of[t] >= 0
-            next_key[t] = np.where(due, key_of[t], next_key[t + 1])
-            next_frame[t] = np.where(due, t, next_frame[t + 1])
-            next_onset[t] = np.where(due, onset[t], next_onset[t + 1])
-        self._next_key, self._next_frame, self._next_onset = next_key, next_frame, next_onset
-
-    def _finger_targets(self) -> np.ndarray:
-        """The ``finger_targets`` entry now, (10, 6) float32 (see the module docstring)."""
-        t, L = min(self._t, self.goal.num_frames), self.config.lookahead
-        out = np.zeros((10, 6), dtype=np.float32)
-        keys = self._next_key[t]
-        steps = self._next_frame[t] - self._t
-        has = (keys >= 0) & (steps <= L) & (self._finger_sites >= 0)
-        if np.any(has):
-            tips = self.data.site_xpos[self._finger_sites[has]]
-            out[has, :3] = self.data.site_xpos[self.scene.key_sites[keys[has]]] - tips
-            out[has, 3] = steps[has] / max(L, 1)
-            out[has, 4] = self._next_onset[t][has]
-            out[has, 5] = 1.0
-        return out
 
     def _setup_spaces(self) -> None:
         L = self.config.lookahead
@@ -298,8 +249,6 @@ class PianoEnv(gym.Env):
             )
             spaces[f"{p}_fingertips"] = gym.spaces.Box(*position, shape=(5, 3), dtype=f32)
             spaces[f"{p}_forearm"] = gym.spaces.Box(*position, shape=(3,), dtype=f32)
-        if self.config.finger_targets:
-            spaces["finger_targets"] = gym.spaces.Box(*position, shape=(10, 6), dtype=f32)
         self.observation_space = gym.spaces.Dict(spaces)
         self.action_space = gym.spaces.Box(-1.0, 1.0, shape=(self.model.nu + 1,), dtype=np.float32)
 
@@ -591,6 +540,4 @@ class PianoEnv(gym.Env):
             obs[f"{p}_joints"] = data.qpos[hand.joint_qpos].astype(np.float32)
             obs[f"{p}_fingertips"] = data.site_xpos[hand.fingertip_sites].astype(np.float32)
             obs[f"{p}_forearm"] = data.xpos[hand.forearm_body].astype(np.float32)
-        if self.config.finger_targets:
-            obs["finger_targets"] = self._finger_targets()
         return obs
