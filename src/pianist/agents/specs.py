@@ -1,7 +1,8 @@
 """Controllers from their specs, the strings of ``--controller``: the one resolver that the
 command line, sweeps and datasets share.
 
-``policy:RUN_DIR`` (a trained agent), ``bc:DIR`` (a behaviour-cloning policy), or anything
+``policy:RUN_DIR`` (a trained agent), ``bc:DIR`` (a behaviour-cloning policy), ``generalist``
+(the behaviour-cloning policy shipped with the package), or anything
 :func:`pianist.control.make_controller` takes (``planner``, ``refine[:...]``, ``mpc[:...]``,
 ``random``, ``zero``, ``replay:ACTIONS.npy``).
 """
@@ -21,6 +22,10 @@ def controller_from_spec(spec: str) -> Any:
         from pianist.agents.policy import PolicyController
 
         return PolicyController(spec.removeprefix("policy:"))
+    if spec == "generalist":
+        from pianist.agents.generalist import generalist_controller
+
+        return generalist_controller()
     if spec.startswith("bc:"):
         from pianist.agents.bc import BCController
 

@@ -26,7 +26,7 @@ def require_jax() -> None:
 
 def make_controller_from_spec(spec: str) -> Any:
     """A controller from the --controller spec (:func:`pianist.agents.specs.controller_from_spec`:
-    policy:RUN_DIR, bc:DIR, or what :func:`pianist.control.make_controller` takes)."""
+    policy:RUN_DIR, bc:DIR, generalist, or what :func:`pianist.control.make_controller` takes)."""
     from pianist.agents.specs import controller_from_spec
 
     return controller_from_spec(spec)

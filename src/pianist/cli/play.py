@@ -31,8 +31,10 @@ class Play:
     """planner; refine (the planner, each action refined by looking ahead with the physics, or
     e.g. refine:candidates=16,horizon_steps=6,sigma=0.15; ~5x slower than real time); mpc (the
     paper's predictive sampling; mpc:tenth, or e.g.
-    mpc:paper,num_samples=20,sigma=0.1,horizon_s=0.3,num_knots=3,iterations=8); policy:RUN_DIR
-    (a trained agent); random; zero; or replay:ACTIONS.npy."""
+    mpc:paper,num_samples=20,sigma=0.1,horizon_s=0.3,num_knots=3,iterations=8); generalist
+    (the policy shipped with the package, for any song, no planner at play time);
+    policy:RUN_DIR (a trained agent); bc:DIR (a behaviour-cloning policy); random; zero; or
+    replay:ACTIONS.npy."""
     refine: bool = False
     """Refine the planner's actions by looking ahead with the physics (the same as
     --controller refine)."""

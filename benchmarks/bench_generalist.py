@@ -1,0 +1,176 @@
+"""The generalist: F1 on held-out pieces, and how it scales with training songs and model size.
+
+``eval``: one behaviour-cloning policy (default: the shipped generalist) plays every song of
+the held-out suites once (seed 0) in NumPy; per song F1, precision, recall and the real-time
+factor (simulated seconds per wall-clock second), and the mean per suite.
+
+``scaling``: the paper's multi-song BC experiment, extended with DAgger. For each number of
+training songs N (the first N songs of a planner demonstration dataset) and each hidden size,
+a policy is trained by behaviour cloning (``--steps`` Adam steps), then ``--dagger-rounds``
+rounds of DAgger on the same N songs, and scored on the held-out suite; also on its own
+training songs (up to 8 of them). The paper's figure is printed beside: BC distilled from
+its RL specialists, <= ~0.15 zero-shot on etude-12.
+
+Run:
+    python benchmarks/bench_generalist.py eval [--policy DIR] [--suites open-etude-12,debug]
+    python benchmarks/bench_generalist.py scaling --dataset pianist/chorales-planner-v0 \
+        [--root DIR] [--sizes 1,8,32,128] [--hidden 256,512] [--dagger-rounds 2]
+Both print a table and, with ``--json FILE``, write it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pianist.agents.bc import (
+    BCConfig,
+    BCPolicy,
+    dagger,
+    demonstrations,
+    load_policy,
+    train_bc,
+)
+from pianist.agents.generalist import GENERALIST_DIR
+from pianist.env.multi_song import MultiSongEnv
+from pianist.eval.metrics import precision_recall_f1
+from pianist.music import list_songs
+
+#: The paper's multi-song BC, zero-shot on etude-12 (facts page, section 6).
+PAPER_BC_ETUDE12 = "<= ~0.15"
+
+
+def evaluate(policy: BCPolicy, songs: list[str], seed: int = 0) -> dict[str, dict[str, float]]:
+    """Each song played once by ``policy``: F1, precision, recall, real-time factor."""
+    env = MultiSongEnv(songs, **policy.env_options)
+    policy.features.check(env.observation_space)
+    rows: dict[str, dict[str, float]] = {}
+    try:
+        for index, song in enumerate(songs):
+            obs, _ = env.reset(seed=seed, options={"song": index})
+            pressed, goal = [], []
+            start = time.perf_counter()
+            done = False
+            while not done:
+                obs, _, terminated, truncated, info = env.step(policy.act(obs))
+                pressed.append(info["active_keys"])
+                goal.append(info["goal_keys"])
+                done = terminated or truncated
+            wall = time.perf_counter() - start
+            metrics = precision_recall_f1(np.array(pressed), np.array(goal))
+            seconds = len(goal) * env.unwrapped.config.control_timestep_s
+            rows[song] = {**metrics, "rtf": seconds / wall}
+    finally:
+        env.close()
+    return rows
+
+
+def _mean(rows: dict[str, dict[str, float]], key: str = "f1") -> float:
+    return float(np.mean([row[key] for row in rows.values()]))
+
+
+def cmd_eval(args: argparse.Namespace) -> dict[str, Any]:
+    policy = load_policy(args.policy)
+    result: dict[str, Any] = {"policy": str(args.policy), "info": policy.info, "suites": {}}
+    print(f"{'suite':18s} {'song':40s} {'F1':>6s} {'P':>6s} {'R':>6s} {'rtf':>6s}")
+    for suite in args.suites.split(","):
+        rows = evaluate(policy, list_songs(suite))
+        for song, row in rows.items():
+            print(
+                f"{suite:18s} {song:40s} {row['f1']:6.3f} {row['precision']:6.3f} "
+                f"{row['recall']:6.3f} {row['rtf']:6.1f}"
+            )
+        mean = {k: _mean(rows, k) for k in ("f1", "precision", "recall", "rtf")}
+        print(
+            f"{suite:18s} {'mean':40s} {mean['f1']:6.3f} {mean['precision']:6.3f} "
+            f"{mean['recall']:6.3f} {mean['rtf']:6.1f}"
+        )
+        result["suites"][suite] = {"songs": rows, "mean": mean}
+    return result
+
+
+def cmd_scaling(args: argparse.Namespace) -> dict[str, Any]:
+    from pianist.cli.bc import _dataset_setup
+    from pianist.data.minari_io import load_dataset
+
+    dataset = load_dataset(args.dataset, Path(args.root) if args.root else None)
+    options, songs = _dataset_setup(dataset)
+    held_out = list_songs(args.held_out)
+    sizes = [int(s) for s in args.sizes.split(",")]
+    hidden = [int(h) for h in args.hidden.split(",")]
+    result: dict[str, Any] = {
+        "dataset": args.dataset,
+        "held_out": args.held_out,
+        "steps": args.steps,
+        "dagger_rounds": args.dagger_rounds,
+        "paper_bc_etude12": PAPER_BC_ETUDE12,
+        "rows": [],
+    }
+    print(
+        f"{'songs':>5s} {'hidden':>6s} {'steps':>6s} {'train F1':>8s} "
+        f"{'held-out F1':>11s} {'minutes':>7s}   (paper's BC on etude-12: {PAPER_BC_ETUDE12})"
+    )
+    for size in sizes:
+        if size > len(songs):
+            raise SystemExit(f"the dataset has {len(songs)} songs, not {size}")
+        # One episode per song, in the dataset's song order: the first `size` episodes.
+        episodes = dataset.iterate_episodes(episode_indices=list(range(size)))
+        data_all = demonstrations((dict(e.observations), np.asarray(e.actions)) for e in episodes)
+        for width in hidden:
+            start = time.perf_counter()
+            data = type(data_all)(data_all.features, data_all.x.copy(), data_all.y.copy())
+            config = BCConfig(hidden_dims=(width, width), steps=args.steps, seed=args.seed)
+            trained = train_bc(data, config, options)
+            policy, _ = dagger(
+                data, songs[:size], args.dagger_rounds, config, options, trained=trained
+            )
+            own = evaluate(policy, songs[: min(size, 8)])
+            test = evaluate(policy, held_out)
+            row = {
+                "songs": size,
+                "hidden": width,
+                "demo_steps": int(len(data_all.x)),
+                "train_f1": _mean(own),
+                "held_out_f1": _mean(test),
+                "held_out": {k: v["f1"] for k, v in test.items()},
+                "minutes": (time.perf_counter() - start) / 60,
+            }
+            result["rows"].append(row)
+            print(
+                f"{size:5d} {width:6d} {row['demo_steps']:6d} {row['train_f1']:8.3f} "
+                f"{row['held_out_f1']:11.3f} {row['minutes']:7.1f}",
+                flush=True,
+            )
+    return result
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="command", required=True)
+    ev = sub.add_parser("eval", help="score one policy on held-out suites")
+    ev.add_argument("--policy", type=Path, default=GENERALIST_DIR)
+    ev.add_argument("--suites", default="open-etude-12,debug,robopianist-debug")
+    sc = sub.add_parser("scaling", help="held-out F1 against training songs and model size")
+    sc.add_argument("--dataset", required=True, help="a planner demonstration dataset id")
+    sc.add_argument("--root", default=None, help="where datasets are stored")
+    sc.add_argument("--sizes", default="1,8,32,128")
+    sc.add_argument("--hidden", default="256")
+    sc.add_argument("--steps", type=int, default=6000)
+    sc.add_argument("--dagger-rounds", type=int, default=2)
+    sc.add_argument("--held-out", default="open-etude-12")
+    sc.add_argument("--seed", type=int, default=0)
+    for p in (ev, sc):
+        p.add_argument("--json", type=Path, default=None, help="also write the results here")
+    args = parser.parse_args()
+    result = cmd_eval(args) if args.command == "eval" else cmd_scaling(args)
+    if args.json:
+        args.json.write_text(json.dumps(result, indent=1) + "\n")
+
+
+if __name__ == "__main__":
+    main()
