@@ -5,7 +5,8 @@ Every four-part Bach chorale of the music21 corpus except the two in ``open-etud
 measures, converted as ``scripts/build_open_library.py`` converts its chorales (quarter = 72,
 soprano right, bass left, inner voices to either hand, every note fingered automatically) and
 written as PIG files (``<chorale>-m<first>.txt``) with a ``provenance.json``. Segments the
-fingerer cannot make playable are left out and listed.
+fingerer cannot make playable are left out and listed. ``--transpose -5,7`` adds each
+segment shifted by those semitones too (``...-m1-t+7``; hands kept, fingered again).
 
 Deterministic: the same music21 corpus and arguments give the same files. music21 is needed
 only here (``pip install music21``). The files go to ``--out`` (default: ``corpus/chorales``
@@ -13,6 +14,7 @@ under the working folder), which is replaced whole.
 
 Usage:
     python scripts/build_chorale_corpus.py [--out DIR] [--measures 4] [--limit N]
+        [--transpose -5,7]
 """
 
 from __future__ import annotations
@@ -27,7 +29,14 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from build_open_library import CHORALE_NOTE, Piece, _convert  # noqa: E402
 
 from pianist.files import atomic_dir  # noqa: E402
-from pianist.music import write_pig  # noqa: E402
+from pianist.music import (  # noqa: E402
+    Song,
+    assign_fingering,
+    check_playability,
+    strip_fingering,
+    write_pig,
+)
+from pianist.music.transforms import transpose  # noqa: E402
 
 #: Chorales of open-etude-12: never in the training corpus.
 HELD_OUT = ("bach/bwv66.6", "bach/bwv269")
@@ -60,7 +69,20 @@ def segments(corpus_path: str, measures: int) -> list[tuple[int, int]]:
     ]
 
 
-def build(out_dir: Path, measures: int, limit: int | None) -> dict:
+def _variants(song: Song, info: dict, shifts: list[int]) -> list[tuple[Song, dict, str]]:
+    """The segment and each playable transposition of it: (song, info, reason left out)."""
+    out = [(song, info, "")]
+    for shift in shifts:
+        name = f"{info['name']}-t{shift:+d}"
+        moved = assign_fingering(strip_fingering(transpose(song, shift), keep_hands=True))
+        moved = Song(moved.notes, name=name)
+        problems = check_playability(moved)
+        entry = {**info, "name": name, "file": f"{name}.txt", "transposed": shift}
+        out.append((moved, entry, "; ".join(problems)))
+    return out
+
+
+def build(out_dir: Path, measures: int, limit: int | None, shifts: list[int]) -> dict:
     """Write the corpus to ``out_dir`` (whole or not at all); returns its provenance record."""
     import music21
 
@@ -91,9 +113,13 @@ def build(out_dir: Path, measures: int, limit: int | None) -> dict:
                 if info["problems"]:
                     skipped.append({"name": name, "reason": "; ".join(info["problems"])})
                     continue
-                write_pig(song, tmp / info["file"])
-                pieces.append(info)
-                print(f"{name:40s} {info['duration_s']:5.1f} s {info['notes']:4d} notes")  # noqa: T201
+                for variant, entry, problem in _variants(song, info, shifts):
+                    if problem:
+                        skipped.append({"name": entry["name"], "reason": problem})
+                        continue
+                    write_pig(variant, tmp / entry["file"])
+                    pieces.append(entry)
+                    print(f"{entry['name']:44s} {entry['duration_s']:5.1f} s")  # noqa: T201
         record = {
             "suite": "chorales",
             "description": (
@@ -113,10 +139,12 @@ def main() -> int:
     parser.add_argument("--out", type=Path, default=Path("corpus/chorales"))
     parser.add_argument("--measures", type=int, default=4)
     parser.add_argument("--limit", type=int, default=None, help="use the first N chorales")
+    parser.add_argument("--transpose", default="", help="semitone shifts added, e.g. -5,7")
     args = parser.parse_args()
     if args.measures < 1:
         parser.error("--measures must be >= 1")
-    record = build(args.out, args.measures, args.limit)
+    shifts = [int(x) for x in args.transpose.split(",") if x.strip()]
+    record = build(args.out, args.measures, args.limit, shifts)
     seconds = sum(p["duration_s"] for p in record["pieces"])
     print(  # noqa: T201
         f"{len(record['pieces'])} segments ({seconds / 60:.1f} min of music), "
