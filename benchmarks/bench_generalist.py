@@ -95,11 +95,10 @@ def cmd_eval(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def cmd_scaling(args: argparse.Namespace) -> dict[str, Any]:
-    from pianist.cli.bc import _dataset_setup
-    from pianist.data.minari_io import load_dataset
+    from pianist.data.minari_io import dataset_setup, load_dataset
 
     dataset = load_dataset(args.dataset, Path(args.root) if args.root else None)
-    options, songs = _dataset_setup(dataset)
+    options, songs = dataset_setup(dataset)
     held_out = list_songs(args.held_out)
     sizes = [int(s) for s in args.sizes.split(",")]
     hidden = [int(h) for h in args.hidden.split(",")]

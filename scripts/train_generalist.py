@@ -29,9 +29,8 @@ import numpy as np
 
 from pianist.agents import bc
 from pianist.agents.generalist import GENERALIST_DIR
-from pianist.cli.bc import _dataset_setup
 from pianist.data.build import BuildSettings, build_dataset
-from pianist.data.minari_io import dataset_dir, load_dataset
+from pianist.data.minari_io import dataset_dir, dataset_setup, load_dataset
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -75,7 +74,7 @@ def main() -> int:
             log=log,
         )
     dataset = load_dataset(dataset_id, root)
-    options, songs = _dataset_setup(dataset)
+    options, songs = dataset_setup(dataset)
     data = bc.demonstrations(bc.minari_episodes(dataset))
     log(f"{dataset_id}: {len(songs)} songs, {len(data.x)} steps, {data.features.dim} features")
 

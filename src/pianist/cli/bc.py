@@ -4,11 +4,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated
 
 import tyro
 
-from pianist.cli.common import CliError, make_controller_from_spec, out, prepare_dir, require_jax
+from pianist.cli.common import CliError, out, prepare_dir, require_jax
 
 
 @dataclass(frozen=True)
@@ -66,10 +66,10 @@ class BCTrain:
         if not self.learning_rate > 0:
             raise CliError(f"--learning-rate must be > 0, not {self.learning_rate}")
         from pianist.agents import bc
-        from pianist.data.minari_io import load_dataset
+        from pianist.data.minari_io import dataset_setup, load_dataset
 
         dataset = load_dataset(self.dataset, self.root)
-        options, songs = _dataset_setup(dataset)
+        options, songs = dataset_setup(dataset)
         songs = list(self.songs) or songs
         prepare_dir(self.out.parent)
         data = bc.demonstrations(bc.minari_episodes(dataset))
@@ -97,23 +97,6 @@ class BCTrain:
             f"wrote {self.out} (final loss {policy.info['final_loss']:.5f}); "
             f"play it with: pianist play SONG --controller bc:{self.out}"
         )
-
-
-def _dataset_setup(dataset: Any) -> tuple[dict[str, Any], list[str]]:
-    """The environment options the dataset's episodes were played in (the controller's
-    declared ones and the physics) and its songs, as stored with the dataset."""
-    metas = list(dataset.storage.get_episode_metadata(dataset.episode_indices))
-    settings = dataset.storage.metadata.get("pianist", {}).get("settings", {})
-    from pianist.music import load_song
-
-    songs = list(dict.fromkeys(str(m.get("song_ref", m.get("song"))) for m in metas))
-    controller = make_controller_from_spec(settings.get("controller", "planner"))
-    declare = getattr(controller, "env_options", None)
-    options: dict[str, Any] = dict(declare(load_song(songs[0]))) if declare is not None else {}
-    physics = {str(m["physics"]) for m in metas if "physics" in m}
-    if len(physics) == 1:
-        options["physics"] = physics.pop()
-    return options, songs
 
 
 @dataclass(frozen=True)

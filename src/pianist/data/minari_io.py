@@ -224,3 +224,22 @@ def dataset_summary(dataset: Any) -> dict[str, Any]:
         },
         "pianist": dataset.storage.metadata.get("pianist", {}),
     }
+
+
+def dataset_setup(dataset: Any) -> tuple[dict[str, Any], list[str]]:
+    """The environment options a loaded dataset's episodes were played in (its controller's
+    declared ones and the physics) and its songs (as given to the build, in episode order).
+    A policy trained on the dataset plays in those options."""
+    from pianist.agents.specs import controller_from_spec
+    from pianist.music import load_song
+
+    metas = list(dataset.storage.get_episode_metadata(dataset.episode_indices))
+    settings = dataset.storage.metadata.get("pianist", {}).get("settings", {})
+    songs = list(dict.fromkeys(str(m.get("song_ref", m.get("song"))) for m in metas))
+    controller = controller_from_spec(settings.get("controller", "planner"))
+    declare = getattr(controller, "env_options", None)
+    options: dict[str, Any] = dict(declare(load_song(songs[0]))) if declare is not None else {}
+    physics = {str(m["physics"]) for m in metas if "physics" in m}
+    if len(physics) == 1:
+        options["physics"] = physics.pop()
+    return options, songs
