@@ -34,11 +34,11 @@ from pianist.agents.bc import (
     dagger,
     demonstrations,
     load_policy,
+    play_song_episode,
     train_bc,
 )
 from pianist.agents.generalist import GENERALIST_DIR
 from pianist.env.multi_song import MultiSongEnv
-from pianist.eval.metrics import precision_recall_f1
 from pianist.music import list_songs
 
 #: The paper's multi-song BC, zero-shot on etude-12 (facts page, section 6).
@@ -52,19 +52,8 @@ def evaluate(policy: BCPolicy, songs: list[str], seed: int = 0) -> dict[str, dic
     rows: dict[str, dict[str, float]] = {}
     try:
         for index, song in enumerate(songs):
-            obs, _ = env.reset(seed=seed, options={"song": index})
-            pressed, goal = [], []
-            start = time.perf_counter()
-            done = False
-            while not done:
-                obs, _, terminated, truncated, info = env.step(policy.act(obs))
-                pressed.append(info["active_keys"])
-                goal.append(info["goal_keys"])
-                done = terminated or truncated
-            wall = time.perf_counter() - start
-            metrics = precision_recall_f1(np.array(pressed), np.array(goal))
-            seconds = len(goal) * env.unwrapped.config.control_timestep_s
-            rows[song] = {**metrics, "rtf": seconds / wall}
+            row = play_song_episode(policy, env, index, seed)
+            rows[song] = {k: v for k, v in row.items() if k != "song"}
     finally:
         env.close()
     return rows

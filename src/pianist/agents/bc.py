@@ -623,6 +623,32 @@ def load_policy(folder: str | Path) -> BCPolicy:
 # ----------------------------------------------------------------------------- evaluation
 
 
+def play_song_episode(
+    policy: BCPolicy, env: MultiSongEnv, index: int, seed: int = 0
+) -> dict[str, Any]:
+    """One episode of song ``index`` of a :class:`pianist.env.multi_song.MultiSongEnv` played
+    by ``policy``: its key precision, recall and F1, the song's name (``song``) and the
+    real-time factor (``rtf``, simulated seconds per wall-clock second)."""
+    import time
+
+    from pianist.env.handle import control_handle
+    from pianist.eval.metrics import precision_recall_f1
+
+    obs, info = env.reset(seed=seed, options={"song": index})
+    pressed, goal = [], []
+    start = time.perf_counter()
+    done = False
+    while not done:
+        obs, _, terminated, truncated, step_info = env.step(policy.act(obs))
+        pressed.append(step_info["active_keys"])
+        goal.append(step_info["goal_keys"])
+        done = terminated or truncated
+    wall = time.perf_counter() - start
+    seconds = len(goal) * control_handle(env).control_timestep_s
+    metrics = precision_recall_f1(np.array(pressed), np.array(goal))
+    return {**metrics, "song": str(info["song"]), "rtf": seconds / max(wall, 1e-9)}
+
+
 def evaluate_multi_song(
     policy: BCPolicy, env: MultiSongEnv, episodes: int = 1, seed: int = 0
 ) -> dict[str, list[float]]:
@@ -630,20 +656,10 @@ def evaluate_multi_song(
     with ``policy`` (seeds ``seed``, ``seed + 1``, ...); returns song -> the F1 of each of its
     episodes. Songs are taken in turn, not drawn: a draw may miss a song, and a deterministic
     policy's episodes of one song repeat."""
-    from pianist.eval.metrics import precision_recall_f1
-
     policy.features.check(env.observation_space)
     scores: dict[str, list[float]] = {}
     for i in range(episodes):
         for index in range(len(env.songs)):
-            obs, info = env.reset(seed=seed + i, options={"song": index})
-            pressed, goal = [], []
-            done = False
-            while not done:
-                obs, _, terminated, truncated, step_info = env.step(policy.act(obs))
-                pressed.append(step_info["active_keys"])
-                goal.append(step_info["goal_keys"])
-                done = terminated or truncated
-            f1 = precision_recall_f1(np.array(pressed), np.array(goal))["f1"]
-            scores.setdefault(str(info["song"]), []).append(f1)
+            row = play_song_episode(policy, env, index, seed + i)
+            scores.setdefault(row["song"], []).append(row["f1"])
     return scores
