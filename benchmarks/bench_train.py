@@ -39,6 +39,14 @@ Practising the hard parts (windows) against whole-piece episodes, one core each:
     nohup taskset -c 1 python benchmarks/bench_train.py learn --preset residual-windows \
         --song mozart-sonata-k545-allegro --minutes 10 --out runs/k545-windows &
     python benchmarks/bench_train.py report runs/k545-anchored runs/k545-windows --marks 5 10
+
+Twinkle from scratch in 10 minutes on both cores, trained on the fast physics and scored on
+the faithful one as well (``--eval-physics``)::
+
+    python benchmarks/bench_train.py learn --preset fast-small --song twinkle-twinkle \
+        --minutes 10 --eval-interval 2000 --out runs/twinkle-s0
+    python benchmarks/bench_train.py report runs/twinkle-s0 --marks 5 10 --episodes 5 \
+        --eval-physics faithful --json twinkle.json
 """
 
 from __future__ import annotations
@@ -211,7 +219,13 @@ def learn(
     print(f"{preset}: {result.step} steps, last eval {result.last_eval}, {result.wall_s:.0f} s")
 
 
-def report(run_dirs: list[str], marks_min: list[float], noise: float, episodes: int) -> list[dict]:
+def report(
+    run_dirs: list[str],
+    marks_min: list[float],
+    noise: float,
+    episodes: int,
+    eval_physics: str | None = None,
+) -> list[dict]:
     rows = []
     for run in run_dirs:
         config = json.loads((Path(run) / "config.json").read_text())
@@ -255,6 +269,11 @@ def report(run_dirs: list[str], marks_min: list[float], noise: float, episodes: 
                 row.update(evaluate_policies(run, config, noise, episodes, "now_"))
         elif episodes > 0:
             row.update(evaluate_policies(run, config, noise, episodes, ""))
+        if eval_physics:
+            # The same policies in another physics preset (trained on fast, scored on
+            # faithful): the rest of the task unchanged.
+            prefix = f"{eval_physics}_"
+            row.update(evaluate_policies(run, config, noise, episodes, prefix, eval_physics))
         rows.append(row)
     head = f"{'song':20s} {'preset':18s} {'steps':>6s} {'upd':>6s} {'wall s':>6s} {'steps/s':>7s}"
     head += f" {'upd/s':>5s}" + "".join(f" {'F1@' + format(m, 'g') + 'm':>7s}" for m in marks_min)
@@ -273,7 +292,11 @@ def report(run_dirs: list[str], marks_min: list[float], noise: float, episodes: 
         if "planner_f1" in row:
             start = row.get("planner_f1_at_start", float("nan"))
             print(f"   planner alone: {start:.3f} at the start, {row['planner_f1']:.3f} again")
-        for prefix, label in (("", "the run's planner"), ("now_", "today's planner")):
+        own = "the run's planner" if "planner_f1" in row else "the run's physics"
+        labels = [("", own), ("now_", "today's planner")]
+        if eval_physics:
+            labels.append((f"{eval_physics}_", f"the {eval_physics} physics"))
+        for prefix, label in labels:
             if f"{prefix}det_final_f1" not in row:
                 continue
             names = [n for n in ("planner", "final", "best") if f"{prefix}det_{n}_f1" in row]
@@ -301,20 +324,26 @@ def planner_f1(config: dict) -> float:
 
 
 def evaluate_policies(
-    run: str, config: dict, sigma: float, episodes: int, prefix: str
+    run: str,
+    config: dict,
+    sigma: float,
+    episodes: int,
+    prefix: str,
+    physics: str | None = None,
 ) -> dict[str, float]:
     """F1 of one deterministic episode and mean F1 over ``episodes`` noisy ones (skipped if
     0) of the planner (residual runs), the run's final policy and its best kept policy
-    (``run/best``), in the run's environment, with whichever planner module is in use."""
+    (``run/best``), in the run's environment (or in another ``physics`` preset), with
+    whichever planner module is in use."""
     from pianist.agents import PolicyController
     from pianist.control.planner import IKPlanner
     from pianist.eval import run_episode
 
-    final = PolicyController(run)
+    final = PolicyController(run, physics=physics)
     env = final.make_env(config["song"])
     controllers = {"final": final}
     if (Path(run) / "best").is_dir():
-        controllers["best"] = PolicyController(Path(run) / "best")
+        controllers["best"] = PolicyController(Path(run) / "best", physics=physics)
     if config["config"]["task"]["residual"]:
         controllers["planner"] = IKPlanner()
     out: dict = {}
@@ -381,6 +410,11 @@ def main() -> None:
     p.add_argument("--episodes", type=int, default=10, help="noisy episodes (0: skip)")
     p.add_argument("--json")
     p.add_argument("--plot", help="also plot F1 against wall-clock time to this PNG")
+    p.add_argument(
+        "--eval-physics",
+        choices=("faithful", "fast"),
+        help="also evaluate the final and best policies in this physics preset",
+    )
     args = parser.parse_args()
     if args.mode == "speed":
         rows = speed(args.presets, args.song, args.repeats)
@@ -396,7 +430,7 @@ def main() -> None:
         )
         return
     else:
-        rows = report(args.runs, args.marks, args.noise, args.episodes)
+        rows = report(args.runs, args.marks, args.noise, args.episodes, args.eval_physics)
         if args.plot:
             plot_curves(rows, args.plot)
     if args.json:

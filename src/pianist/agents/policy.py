@@ -75,10 +75,19 @@ class PolicyController:
     :meth:`make_env`. Actions are deterministic (the actor's mean).
     """
 
-    def __init__(self, run_dir: str | Path) -> None:
+    def __init__(self, run_dir: str | Path, physics: str | None = None) -> None:
+        """``physics``: play in this physics preset ("faithful" or "fast") instead of the
+        one the policy was trained in, everything else of its task unchanged (to measure
+        how a policy trained on the fast preset transfers to the faithful one)."""
         from pianist.agents.checkpoint import load_policy
+        from pianist.sim.scene import PHYSICS_PRESETS
 
+        if physics is not None and physics not in PHYSICS_PRESETS:
+            raise ValueError(
+                f"unknown physics {physics!r}; use one of {', '.join(PHYSICS_PRESETS)}"
+            )
         self.run_dir: Path | None = Path(run_dir)
+        self.physics = physics
         self.config, weights, self.step = load_policy(self.run_dir)
         a = self.config.agent
         self.actor = NumpyActor(weights, a.activation, a.log_std_min, a.log_std_max)
@@ -89,6 +98,7 @@ class PolicyController:
         """A controller around an actor held in memory (used for evaluation during training)."""
         self = cls.__new__(cls)
         self.run_dir, self.config, self.actor, self.step = None, config, actor, -1
+        self.physics = None
         self._features = None
         return self
 
@@ -102,8 +112,12 @@ class PolicyController:
 
     def env_options(self, song: Any) -> dict[str, Any]:
         """The :class:`pianist.env.PianoEnv` options :meth:`make_env` uses for ``song``: the
-        whole task it was trained on (physics, hands, lookahead, action space, lead-in)."""
-        return self.config.task.env_options(song_hands(song))
+        whole task it was trained on (physics, hands, lookahead, action space, lead-in), in
+        the ``physics`` given at construction if any."""
+        options = self.config.task.env_options(song_hands(song))
+        if self.physics is not None:
+            options["physics"] = self.physics
+        return options
 
     def wrap_env(self, env: gym.Env) -> AgentEnv:
         """The environment as the policy observes it (its task's extra observation entries)."""

@@ -6,7 +6,7 @@ import math
 import sys
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Literal
 
 import tyro
 
@@ -108,13 +108,17 @@ class Eval:
     out: Annotated[Path | None, tyro.conf.arg(help_behavior_hint="(default: RUN_DIR/eval)")] = None
     """Output directory."""
     seed: int = 0
+    physics: Literal["faithful", "fast"] | None = None
+    """Evaluate in this physics preset instead of the one the policy was trained in (the
+    rest of its task unchanged): how a policy trained on the fast preset plays on the
+    faithful one."""
 
     def run(self) -> None:
         from pianist.agents import PolicyController
         from pianist.eval.session import play
         from pianist.media.results import MediaOptions, check_output_folder, write_result
 
-        controller = PolicyController(self.run_dir)
+        controller = PolicyController(self.run_dir, physics=self.physics)
         out = self.out or self.run_dir / "eval"
         check_output_folder(out)
         result = play(self.song, controller, seed=self.seed)
@@ -124,6 +128,7 @@ class Eval:
             "run": str(self.run_dir),
             "checkpoint_step": controller.step,
             "preset": controller.config.preset,
+            "trained_physics": controller.config.task.physics,
         }
         write_result(result, out, MediaOptions(audio=False), extra_metrics=extra)
         _out(
