@@ -237,6 +237,7 @@ def report(
             "run": run,
             "preset": config["config"]["preset"],
             "song": config["song"],
+            "seed": config["config"].get("seed"),
             "steps": last["step"],
             "updates": last["updates"],
             "wall_s": last["wall_s"],
@@ -372,7 +373,12 @@ def plot_curves(rows: list[dict], path: str) -> None:
         minutes = [w / 60 for w, _, _ in row["curve"]]
         f1 = [f for _, _, f in row["curve"]]
         ax.plot(
-            minutes, f1, marker="o", ms=3, color=colour, label=f"{row['preset']} ({row['song']})"
+            minutes,
+            f1,
+            marker="o",
+            ms=3,
+            color=colour,
+            label=f"{row['preset']} ({row['song']}, seed {row['seed']})",
         )
         if "planner_f1" in row:
             ax.axhline(row["planner_f1"], color=colour, ls="--", lw=1, alpha=0.7)
