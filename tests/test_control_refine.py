@@ -59,6 +59,67 @@ def test_refining_plays_a_chorale_passage_better_than_the_planner():
     assert 0 < refined["refined_share"] < 1
 
 
+def test_each_finger_takes_the_candidate_that_cost_it_least():
+    song = window(load_song("bach-chorale-bwv66-6"), 0.0, 1.0)
+    refiner = Refiner(options=RefineOptions(candidates=2))
+    env = make_env(song, refiner, physics="fast")
+    env.reset(seed=0)
+    refiner.reset(env, seed=0)
+    offsets = np.zeros((3, env.action_space.shape[0]), dtype=np.float32)
+    offsets[1, refiner.dims], offsets[2, refiner.dims] = 0.1, -0.1
+    costs = np.zeros((3, 10))
+    costs[0, :] = 1.0  # the proposal costs every finger a key
+    costs[1, 0] = costs[2, 1] = 2.0  # candidate 1 is worse for finger 0, 2 for finger 1
+    combined = refiner._combine(offsets, costs)
+    thumb, index = refiner.finger_dims[0], refiner.finger_dims[1]  # of the right hand
+    np.testing.assert_allclose(combined[thumb], -0.1)  # finger 0: candidate 2
+    np.testing.assert_allclose(combined[index], 0.1)  # finger 1: candidate 1
+    np.testing.assert_allclose(combined[refiner.finger_dims[2]], 0.1)  # a tie: the first
+    others = np.setdiff1d(np.arange(combined.size), refiner.dims)
+    np.testing.assert_array_equal(combined[others], 0.0)  # forearms, wrists, pedal untouched
+
+
+def test_a_look_aheads_cost_is_shared_among_the_fingers_that_answer_for_it():
+    song = window(load_song("bach-chorale-bwv66-6"), 0.0, 1.0)
+    refiner = Refiner(options=RefineOptions(candidates=1, horizon_steps=4))
+    env = make_env(song, refiner, physics="fast")
+    obs, _ = env.reset(seed=0)
+    refiner.reset(env, seed=0)
+    proposal = refiner.planner.act(obs)
+    zero = np.zeros_like(proposal)
+    total, per_finger = refiner._look_ahead(
+        proposal, zero, refiner.handle.snapshot(), refiner.planner.memory()
+    )
+    # From home the hands miss the first chord: every due key is some finger's, and so is
+    # every wrong one, so the parts add up to the whole.
+    assert total > 0 and per_finger.sum() == pytest.approx(total)
+
+
+def test_crossed_fingers_are_found_in_either_hand():
+    song = load_song("c-major-scale-both")
+    refiner = Refiner(options=RefineOptions(candidates=1))
+    env = make_env(song, refiner, physics="fast")
+    env.reset(seed=0)
+    refiner.reset(env, seed=0)
+    sides = [hand.side for hand in refiner.planner.hands]
+    # Fingertips 2 cm apart in order, each hand's little finger furthest from its thumb.
+    tip_y = np.concatenate(
+        [
+            (0.3 if side == "right" else -0.3)
+            + (1 if side == "right" else -1) * 0.02 * np.arange(5)
+            for side in sides
+        ]
+    )
+    assert refiner._crossed(tip_y).size == 0
+    hand = sides.index("left")
+    crossed = tip_y.copy()
+    crossed[hand * 5 + 2] = crossed[hand * 5 + 3] - 0.005  # middle past ring, toward the bass
+    offset = refiner.planner.hands[hand].finger_offset
+    assert sorted(refiner._crossed(crossed).tolist()) == [offset + 2, offset + 3]
+    crossed[hand * 5 + 2] = crossed[hand * 5 + 3] + 0.002  # 2 mm short of it: not crossed
+    assert refiner._crossed(crossed).size == 0
+
+
 def test_refine_options_parse_and_refuse():
     assert parse_refine_options("") == RefineOptions()
     assert parse_refine_options("candidates=16,sigma=0.2") == RefineOptions(16, sigma=0.2)

@@ -11,10 +11,16 @@ candidates (a finger that needed more push usually needs it for a few steps). Th
 unperturbed proposal is candidate 0 and wins ties, so where looking ahead finds nothing
 better the planner plays as it would alone.
 
+Each look-ahead's cost is also split among the fingers (a missed key is its planned
+finger's, a wrong key the nearest fingertip's), and each finger's part of the perturbation
+that cost it least is combined into one more candidate (``per_finger``). A look-ahead step
+that ends with two neighbouring fingers crossed costs ``crossing_cost``: caught on each
+other, they stay stuck longer than the look-ahead sees.
+
 This is predictive sampling (the paper's MPC baseline) around the planner instead of around
 a spline: the planner supplies the motion, the samples only correct what the physics does to
 it (a finger that slides off, a key that flickers at the bottom of its travel, a late
-strike). It costs ``(candidates + 1) * horizon_steps`` simulated steps per step.
+strike). It costs up to ``(candidates + 2) * horizon_steps`` simulated steps per step.
 """
 
 from __future__ import annotations
@@ -52,6 +58,17 @@ class RefineOptions:
     candidate): a finger that needed more push usually needs it for a few steps."""
     wrong_weight: float = 1.0
     """Cost of a key sounded that is not due, against 1 for a due key not sounded."""
+    crossing_cost: float = 10.0
+    """Cost of each look-ahead step that ends with two neighbouring fingers (index to little
+    finger) crossed, one more than 3 mm past the other across the keys: perturbed towards
+    each other, they catch, and the one behind then cannot get back to its keys for many
+    steps, longer than the look-ahead sees."""
+    per_finger: bool = True
+    """Also combine the candidates finger by finger: each finger takes the perturbation
+    whose look-ahead cost its own keys least (a due key counts for the finger the plan gives
+    it, a wrong key for the nearest fingertip), and that combination is looked ahead too and
+    played if it costs least. One random perturbation of every finger rarely helps two
+    fingers at once; combined, each finger chooses from all of them."""
 
     def __post_init__(self) -> None:
         if self.candidates < 0 or self.horizon_steps < 1 or not self.sigma >= 0:
@@ -104,6 +121,17 @@ class Refiner(BaseController):
         self.ahead_handle = control_handle(self.ahead)
         self.rng = np.random.default_rng(0 if seed is None else seed)
         self.dims = self.planner.finger_action_dims()
+        # Each finger's (0-9) action dimensions and fingertip site, for the per-finger choice.
+        hands = self.planner.hands
+        self.finger_dims = {
+            hand.finger_offset + i: finger.actuators
+            for hand in hands
+            for i, finger in enumerate(hand.fingers)
+        }
+        self.tip_fingers = np.array([hand.finger_offset + i for hand in hands for i in range(5)])
+        self.tip_sites = np.concatenate([hand.sites for hand in hands])
+        # (H,) per hand, +1 if its fingers go up the keyboard from thumb to little finger.
+        self.hand_direction = np.array([1.0 if hand.side == "right" else -1.0 for hand in hands])
         self._steps = self._refined = 0
         self._previous: np.ndarray | None = None
         self._seconds = 0.0
@@ -121,10 +149,18 @@ class Refiner(BaseController):
         if o.keep_previous and self._previous is not None:
             offsets[1] = self._previous
         costs: list[float] = []
+        finger_costs: list[np.ndarray] = []
         for offset in offsets:
-            costs.append(self._look_ahead(proposal, offset, state, memory))
-            if costs[-1] == 0.0:
+            cost, per_finger = self._look_ahead(proposal, offset, state, memory)
+            costs.append(cost)
+            finger_costs.append(per_finger)
+            if cost == 0.0:
                 break  # nothing can do better; the same choice as trying them all
+        if o.per_finger and len(costs) == len(offsets) > 1:
+            combined = self._combine(offsets, np.stack(finger_costs))
+            if not np.any(np.all(offsets == combined, axis=1)):
+                offsets = np.vstack([offsets, combined])
+                costs.append(self._look_ahead(proposal, combined, state, memory)[0])
         # Back to the real episode, the planner as it was after proposing.
         self.planner.attach(self.handle)
         self.planner.set_memory(memory)
@@ -135,21 +171,36 @@ class Refiner(BaseController):
         self._seconds += time.perf_counter() - start
         return np.clip(proposal + offsets[best], -1.0, 1.0)
 
+    def _combine(self, offsets: np.ndarray, finger_costs: np.ndarray) -> np.ndarray:
+        """(A,) each finger's part of the offset whose look-ahead cost that finger least (the
+        first of equals, so the proposal's own where nothing did better), from ``offsets``
+        (N, A) and ``finger_costs`` (N, 10)."""
+        combined = offsets[0].copy()
+        for finger, dims in self.finger_dims.items():
+            combined[dims] = offsets[int(np.argmin(finger_costs[:, finger])), dims]
+        return combined
+
     def _look_ahead(
         self,
         proposal: np.ndarray,
         offset: np.ndarray,
         state: EnvState,
         memory: list[dict[str, np.ndarray]],
-    ) -> float:
+    ) -> tuple[float, np.ndarray]:
         """Missed and wrong keys over the horizon when ``offset`` is added to the planner's
-        actions, from ``state`` with the planner's ``memory``."""
+        actions, from ``state`` with the planner's ``memory``: the total, and (10,) the part
+        of it each finger is answerable for (a due key: the finger the plan gives it; a wrong
+        key: the fingertip nearest to it along the keyboard)."""
         o = self.options
         self.ahead.restore(state)
         self.planner.attach(self.ahead_handle)
         self.planner.set_memory(memory)
         goal = self.handle.goal.keys
+        fingers = self.planner.fingers
+        key_y = self.planner.key_point[:, 1]
+        site_xpos = self.ahead_handle.data.site_xpos
         cost = 0.0
+        per_finger = np.zeros(10)
         action = proposal
         for j in range(o.horizon_steps):
             t = state.step + j
@@ -159,10 +210,33 @@ class Refiner(BaseController):
                 action = self.planner.act(None)
             _, _, terminated, _, info = self.ahead.step(np.clip(action + offset, -1.0, 1.0))
             active, due = info["active_keys"], goal[t]
-            cost += float(np.sum(due & ~active) + o.wrong_weight * np.sum(active & ~due))
+            missed = np.flatnonzero(due & ~active)
+            wrong = np.flatnonzero(active & ~due)
+            cost += float(missed.size + o.wrong_weight * wrong.size)
+            owners = fingers[t, missed]
+            np.add.at(per_finger, owners[owners >= 0], 1.0)
+            tip_y = site_xpos[self.tip_sites, 1]
+            if wrong.size:
+                nearest = np.argmin(np.abs(key_y[wrong, None] - tip_y[None, :]), axis=1)
+                np.add.at(per_finger, self.tip_fingers[nearest], o.wrong_weight)
+            crossed = self._crossed(tip_y)
+            if crossed.size:
+                cost += o.crossing_cost
+                np.add.at(per_finger, crossed, o.crossing_cost)
             if terminated:
                 break
-        return cost
+        return cost, per_finger
+
+    def _crossed(self, tip_y: np.ndarray) -> np.ndarray:
+        """The fingers (0-9) crossed with a neighbour (index to little finger, more than
+        3 mm past it across the keys), from the fingertips' y (5 per hand, thumb first)."""
+        y = tip_y.reshape(-1, 5)[:, 1:]  # (hands, 4): index to little finger
+        up = (y[:, 1:] - y[:, :-1]) * self.hand_direction[:, None]  # (hands, 3) in order: > 0
+        hand, pair = np.nonzero(up < -0.003)
+        if not hand.size:
+            return hand
+        first = self.tip_fingers.reshape(-1, 5)[hand, pair + 1]
+        return np.concatenate([first, first + 1])
 
     def stats(self) -> dict[str, float]:
         steps = max(self._steps, 1)
