@@ -123,3 +123,13 @@ def test_a_task_can_give_the_hands_a_lead_in():
     assert not env.unwrapped.goal.keys[:10].any()
     restored = TrainConfig.from_dict(dataclasses.replace(cfg, task=task).to_dict())
     assert restored.task.initial_buffer_s == 0.5
+
+
+def test_train_and_sweep_default_to_the_residual_preset():
+    from pianist.agents.config import DEFAULT_PRESET
+    from pianist.cli.train import Train
+    from pianist.sweep.tasks import TASKS
+
+    assert DEFAULT_PRESET == "residual-anchored" and get_preset(DEFAULT_PRESET).task.residual
+    assert Train().preset == DEFAULT_PRESET
+    assert TASKS["train"].default_variant == DEFAULT_PRESET

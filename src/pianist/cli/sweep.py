@@ -42,7 +42,7 @@ class Sweep:
     """Folders whose song files (.mid, .midi, PIG .txt) the grid holds."""
     controllers: Annotated[tuple[str, ...], _hint("(default: planner)")] = ()
     """play, dataset: controller specs, as play --controller takes them."""
-    presets: Annotated[tuple[str, ...], _hint("(default: droq-paper)")] = ()
+    presets: Annotated[tuple[str, ...], _hint("(default: residual-anchored)")] = ()
     """train: training presets."""
     runs: Annotated[tuple[Path, ...], _hint("(required for eval)")] = ()
     """eval: training run folders to evaluate."""

@@ -10,6 +10,7 @@ from typing import Annotated, Literal
 
 import tyro
 
+from pianist.agents.config import DEFAULT_PRESET
 from pianist.cli.common import CliError, SongArg
 from pianist.cli.common import out as _out
 from pianist.cli.common import prepare_dir as _prepare_dir
@@ -27,9 +28,11 @@ class Train:
         ]
     ] = None
     """A built-in song name, a MIDI file or a PIG file."""
-    preset: str = "droq-paper"
-    """droq-paper, droq-paper-pipelined, sac, redq, fast, fast-small, fast-utd2, residual,
-    residual-anchored."""
+    preset: str = DEFAULT_PRESET
+    """residual-anchored (a correction learned on top of the planner: the best measured per
+    minute on real pieces), fast-small (from scratch: Twinkle in minutes), droq-paper (the
+    paper's recipe: millions of steps), droq-paper-pipelined, sac, redq, fast, fast-utd2,
+    residual, residual-windows."""
     steps: Annotated[
         int | None,
         tyro.conf.arg(help_behavior_hint="(default: 1000000; when resuming, the run's own)"),

@@ -35,6 +35,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, cast
 
+from pianist.agents.config import DEFAULT_PRESET
 from pianist.files import atomic_dir, write_json_atomic
 from pianist.sweep.grid import Cell
 
@@ -214,7 +215,7 @@ def _run_dataset(cell: Cell, options: SweepOptions, folder: Path, work: Path) ->
 #: The tasks a sweep can run, by name.
 TASKS: dict[str, Task] = {
     "play": Task("play", "controller", "planner", True, _check_controller, _run_play),
-    "train": Task("train", "preset", "droq-paper", False, _check_preset, _run_train),
+    "train": Task("train", "preset", DEFAULT_PRESET, False, _check_preset, _run_train),
     "eval": Task("eval", "run", "", False, _check_run, _run_eval),
     "dataset": Task("dataset", "controller", "planner", True, _check_controller, _run_dataset),
 }
