@@ -111,7 +111,10 @@ class Eval:
     out: Annotated[Path | None, tyro.conf.arg(help_behavior_hint="(default: RUN_DIR/eval)")] = None
     """Output directory."""
     seed: int = 0
-    physics: Literal["faithful", "fast"] | None = None
+    physics: Annotated[
+        Literal["faithful", "fast"] | None,
+        tyro.conf.arg(help_behavior_hint="(default: the one it was trained in)"),
+    ] = None
     """Evaluate in this physics preset instead of the one the policy was trained in (the
     rest of its task unchanged): how a policy trained on the fast preset plays on the
     faithful one."""
