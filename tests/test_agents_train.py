@@ -201,3 +201,18 @@ def test_unusable_run_configurations_are_clear_errors(tmp_path):
     rundir.write_run_config(tmp_path, {"song": SONG})
     with pytest.raises(ValueError, match="not a valid run configuration"):
         rundir.read_run_config(tmp_path)
+
+
+def test_a_midi_file_without_fingering_trains_as_the_fingered_song(tmp_path):
+    # A MIDI file carries no fingering: the task estimates it, as `pianist play` does, so the
+    # file's task is the song's (one hand, fingered), not both hands with nothing to follow.
+    from pianist.music import get_song, strip_fingering, write_midi
+
+    path = tmp_path / "twinkle.mid"
+    write_midi(strip_fingering(get_song(SONG)), path)
+    from_file = make_agent_env(str(path), BASE.task)
+    by_name = make_agent_env(SONG, BASE.task)
+    assert from_file.action_space.shape == by_name.action_space.shape == (20,)
+    goal = from_file.unwrapped.goal
+    assert np.all(goal.fingers[goal.keys] >= 0)
+    assert Featurizer(from_file, BASE.task).obs_dim == Featurizer(by_name, BASE.task).obs_dim

@@ -142,18 +142,28 @@ def _box(space: gym.spaces.Space) -> gym.spaces.Box:
     return space
 
 
+def fingered_song(song: Song | GoalFrames | str | Path) -> Song | GoalFrames:
+    """``song`` itself, or the song of a name or file with its missing fingers estimated
+    (``fingering="auto"``, as ``pianist play`` loads it): a MIDI file carries no fingering,
+    and a task without it has neither the fingering reward nor its hands."""
+    return song if isinstance(song, (Song, GoalFrames)) else load_song(song, fingering="auto")
+
+
 def song_hands(song: Song | GoalFrames | str | Path) -> tuple[str, ...]:
     """The hands a song's notes are fingered for, ('right',), ('left',) or both (or ())."""
+    song = fingered_song(song)
     if isinstance(song, GoalFrames):
         fingers = song.fingers[song.fingers >= 0]
         hands = {"right" if f < 5 else "left" for f in fingers.tolist()}
     else:
-        hands = set((song if isinstance(song, Song) else load_song(song)).hands)
+        hands = set(song.hands)
     return tuple(sorted(hands, reverse=True))
 
 
 def make_agent_env(song: Song | GoalFrames | str | Path, task: TaskConfig) -> AgentEnv:
-    """The wrapped environment of ``task`` for ``song`` (a name, a file, a Song)."""
+    """The wrapped environment of ``task`` for ``song`` (a name, a file, a Song; a file's
+    missing fingers estimated, see :func:`fingered_song`)."""
+    song = fingered_song(song)
     hands = song_hands(song) if task.hands == "song" else ()
     return AgentEnv(PianoEnv(song, **task.env_options(hands)), task)
 
