@@ -216,3 +216,14 @@ def test_a_midi_file_without_fingering_trains_as_the_fingered_song(tmp_path):
     goal = from_file.unwrapped.goal
     assert np.all(goal.fingers[goal.keys] >= 0)
     assert Featurizer(from_file, BASE.task).obs_dim == Featurizer(by_name, BASE.task).obs_dim
+
+
+def test_a_policy_plays_a_midi_file_without_fingering_in_its_task(run_dir, tmp_path):
+    from pianist.music import get_song, strip_fingering, write_midi
+
+    path = tmp_path / "twinkle.mid"
+    write_midi(strip_fingering(get_song(SONG)), path)
+    policy = PolicyController(run_dir)
+    env = policy.make_env(str(path))  # the file's fingers estimated, as in training
+    assert env.action_space.shape == policy.make_env(SONG).action_space.shape
+    assert 0.0 <= run_episode(env, policy, seed=0).metrics()["f1"] <= 1.0
