@@ -10,7 +10,7 @@ import gymnasium as gym
 import numpy as np
 
 from pianist.agents.config import TrainConfig
-from pianist.agents.envs import AgentEnv, Featurizer, fingered_song, song_hands
+from pianist.agents.envs import AgentEnv, Featurizer, song_hands
 
 _SQRT_2_OVER_PI = np.float32(np.sqrt(2.0 / np.pi))
 
@@ -108,8 +108,9 @@ class PolicyController:
         :func:`pianist.eval.session.make_env` builds from :meth:`env_options` and
         :meth:`wrap_env`."""
         from pianist.eval.session import make_env
+        from pianist.music import load_song
 
-        return make_env(fingered_song(song), self)
+        return make_env(load_song(song, fingering="auto"), self)
 
     def env_options(self, song: Any) -> dict[str, Any]:
         """The :class:`pianist.env.PianoEnv` options :meth:`make_env` uses for ``song``: the
