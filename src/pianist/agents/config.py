@@ -305,14 +305,14 @@ PRESETS: dict[str, TrainConfig] = {
 # Practise the hard parts: residual-anchored, with three training episodes in four being
 # 4-second windows started mid-piece from the planner's states, drawn more often where the
 # policy loses F1 (TrainConfig.windows); evaluation stays the whole piece.
+PRESETS["residual-windows"] = dataclasses.replace(
+    PRESETS["residual-anchored"], preset="residual-windows", windows=True
+)
+
 #: The preset ``pianist train`` and ``pianist sweep --task train`` use unless told: the best
 #: measured per wall-clock minute on a real piece (it starts as the planner and learns a
 #: correction; docs/training.md). ``droq-paper``, the paper's recipe, needs millions of steps.
 DEFAULT_PRESET = "residual-anchored"
-
-PRESETS["residual-windows"] = dataclasses.replace(
-    PRESETS["residual-anchored"], preset="residual-windows", windows=True
-)
 
 
 def get_preset(name: str, **overrides: Any) -> TrainConfig:
