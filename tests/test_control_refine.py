@@ -12,6 +12,15 @@ from pianist.music import load_song
 from pianist.music.transforms import window
 
 
+def _refiner_at_start(song, options: RefineOptions):
+    """A refiner reset on a fresh fast-physics environment of ``song``: (refiner, env, obs)."""
+    refiner = Refiner(options=options)
+    env = make_env(song, refiner, physics="fast")
+    obs, _ = env.reset(seed=0)
+    refiner.reset(env, seed=0)
+    return refiner, env, obs
+
+
 def test_without_candidates_the_refiner_plays_the_planners_actions():
     song = window(load_song("twinkle-twinkle"), 0.0, 2.0)
     alone = play(song, IKPlanner(), physics="fast", seed=0)
@@ -21,10 +30,7 @@ def test_without_candidates_the_refiner_plays_the_planners_actions():
 
 def test_looking_ahead_leaves_the_episode_and_the_planner_as_they_were():
     song = window(load_song("bach-chorale-bwv66-6"), 0.0, 1.0)
-    refiner = Refiner(options=RefineOptions(candidates=3, horizon_steps=3))
-    env = make_env(song, refiner, physics="fast")
-    obs, _ = env.reset(seed=0)
-    refiner.reset(env, seed=0)
+    refiner, env, obs = _refiner_at_start(song, RefineOptions(candidates=3, horizon_steps=3))
     twin = IKPlanner()
     twin_env = make_env(song, twin, physics="fast")
     twin_env.reset(seed=0)
@@ -61,10 +67,7 @@ def test_refining_plays_a_chorale_passage_better_than_the_planner():
 
 def test_each_finger_takes_the_candidate_that_cost_it_least():
     song = window(load_song("bach-chorale-bwv66-6"), 0.0, 1.0)
-    refiner = Refiner(options=RefineOptions(candidates=2))
-    env = make_env(song, refiner, physics="fast")
-    env.reset(seed=0)
-    refiner.reset(env, seed=0)
+    refiner, env, _ = _refiner_at_start(song, RefineOptions(candidates=2))
     offsets = np.zeros((3, env.action_space.shape[0]), dtype=np.float32)
     offsets[1, refiner.dims], offsets[2, refiner.dims] = 0.1, -0.1
     costs = np.zeros((3, 10))
@@ -81,10 +84,7 @@ def test_each_finger_takes_the_candidate_that_cost_it_least():
 
 def test_a_look_aheads_cost_is_shared_among_the_fingers_that_answer_for_it():
     song = window(load_song("bach-chorale-bwv66-6"), 0.0, 1.0)
-    refiner = Refiner(options=RefineOptions(candidates=1, horizon_steps=4))
-    env = make_env(song, refiner, physics="fast")
-    obs, _ = env.reset(seed=0)
-    refiner.reset(env, seed=0)
+    refiner, _, obs = _refiner_at_start(song, RefineOptions(candidates=1, horizon_steps=4))
     proposal = refiner.planner.act(obs)
     zero = np.zeros_like(proposal)
     total, per_finger = refiner._look_ahead(
@@ -96,20 +96,11 @@ def test_a_look_aheads_cost_is_shared_among_the_fingers_that_answer_for_it():
 
 
 def test_crossed_fingers_are_found_in_either_hand():
-    song = load_song("c-major-scale-both")
-    refiner = Refiner(options=RefineOptions(candidates=1))
-    env = make_env(song, refiner, physics="fast")
-    env.reset(seed=0)
-    refiner.reset(env, seed=0)
+    refiner, _, _ = _refiner_at_start(load_song("c-major-scale-both"), RefineOptions(candidates=1))
     sides = [hand.side for hand in refiner.planner.hands]
     # Fingertips 2 cm apart in order, each hand's little finger furthest from its thumb.
-    tip_y = np.concatenate(
-        [
-            (0.3 if side == "right" else -0.3)
-            + (1 if side == "right" else -1) * 0.02 * np.arange(5)
-            for side in sides
-        ]
-    )
+    up = [1.0 if side == "right" else -1.0 for side in sides]
+    tip_y = np.concatenate([u * (0.3 + 0.02 * np.arange(5)) for u in up])
     assert refiner._crossed(tip_y).size == 0
     hand = sides.index("left")
     crossed = tip_y.copy()
