@@ -1,5 +1,7 @@
 """The inverse-kinematics planner plays fingered songs with no training."""
 
+import dataclasses
+
 import mujoco
 import numpy as np
 import pytest
@@ -9,7 +11,7 @@ from pianist.control.planner import ENV_OPTIONS, FingerState, IKPlanner, Planner
 from pianist.env import PianoEnv
 from pianist.eval import run_episode
 from pianist.eval.session import make_env
-from pianist.music import Note, Song
+from pianist.music import Note, Song, load_song
 from pianist.sim.constants import BLACK_KEY_MASK, FINGERTIP_CAPSULE_RADIUS_M
 
 
@@ -509,3 +511,68 @@ def test_the_joint_plan_of_both_hands_plays_with_its_own_split():
     # No key is pressed by the plan of both hands at once.
     right, left = sorted(planner.hands, key=lambda h: h.side != "right")
     assert not np.any((right.key_fingers >= 0) & (left.key_fingers >= 0))
+
+
+def test_a_thumb_pressing_past_its_reach_gives_up_depth_not_lining_up():
+    # C major scale, frame 4: the hand is over C4, which the thumb plays. A target 2-3 cm
+    # below the key's top is past the thumb's reach: unweighted, the inverse kinematics gave
+    # up 1.6-3 mm across the keys for it (in the pieces up to ~8 mm: the tip pressed the
+    # crack between two keys); with the thumb's lateral weight it stays over the key.
+    env, planner, _ = _step_planner("c-major-scale-right", 4)
+    hand, m, scratch = planner.hands[0], planner.model, planner.scratch
+    key = 60 - 21
+    assert env.goal.fingers[3, key] == 0
+    errors = {}
+    for weight in (1.0, 4.0):
+        config = dataclasses.replace(planner.config, thumb_lateral_weight=weight)
+        for depth in (0.02, 0.03):
+            target = planner.key_point[key].copy()
+            target[0] = config.thumb_white_press_x_m
+            target[2] = planner.key_top_z[key] - depth
+            scratch.qpos[:] = env.data.qpos
+            mujoco.mj_kinematics(m, scratch)
+            targets = np.zeros((5, 3))
+            targets[0] = target - scratch.xpos[hand.forearm_body]
+            hand.solve(m, scratch, targets, np.array([True, False, False, False, False]), config)
+            mujoco.mj_kinematics(m, scratch)
+            errors[weight, depth] = abs(scratch.site_xpos[hand.fingers[0].site, 1] - target[1])
+    for depth in (0.02, 0.03):
+        assert errors[1.0, depth] > 0.0012, errors
+        assert errors[4.0, depth] < 0.0005, errors
+
+
+@pytest.mark.parametrize("unwedge", [True, False])
+def test_a_thumb_wedged_between_two_keys_comes_free(unwedge):
+    # K545 allegro, frames 77-91: the left thumb goes from G4 to A4 low over the keys and
+    # catches below A4's top, touching both keys, 19 mm short of it; pushing sideways it stayed
+    # there until frame 89. Lifted clear for a step once it stands still there, it presses A4
+    # from frame 80.
+    env = PianoEnv(load_song("mozart-sonata-k545-allegro"), physics="fast", **ENV_OPTIONS)
+    planner = IKPlanner(PlannerConfig(unwedge=unwedge))
+    observation, _ = env.reset(seed=0)
+    planner.reset(env, seed=0)
+    key = 69 - 21
+    down = []
+    for _ in range(92):
+        observation, *_ = env.step(planner.act(observation))
+        down.append(env.data.qpos[planner.key_qpos[key]] >= planner.key_threshold[key])
+    due = np.flatnonzero(env.goal.keys[:92, key])
+    assert due.min() == 77 and due.size == 12
+    sounded = int(np.sum(np.array(down)[due]))
+    assert sounded >= 8 if unwedge else sounded <= 4, (sounded, np.flatnonzero(down))
+
+
+@pytest.mark.parametrize("keep_sounding", [True, False])
+def test_a_finger_holding_its_key_down_keeps_pressing_though_its_tip_slid(keep_sounding):
+    # D major scale, frame 65: the ring finger holds C#5 down. With the key's press point
+    # moved 2 cm across the keys (as the thumb's tip slides when it presses), the finger is far
+    # off it, but its key sounds: it keeps pressing instead of coming up to line up again.
+    key, finger, frame = 73 - 21, 3, 65
+    env, planner, _ = _step_planner("d-major-scale-right", frame)
+    hand = planner.hands[0]
+    assert hand.pressing[finger]
+    assert env.data.qpos[planner.key_qpos[key]] >= planner.key_threshold[key]
+    planner.config = dataclasses.replace(planner.config, keep_sounding=keep_sounding)
+    planner.key_point[key, 1] += 0.02
+    hand.fingertip_targets(planner, frame, frame + 5)
+    assert hand.pressing[finger] == keep_sounding

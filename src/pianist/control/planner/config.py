@@ -136,10 +136,18 @@ class PlannerConfig:
     key."""
     keep_pressing_ratio: float = 1.3
     """A pressing finger keeps pressing until it is this many tolerances off its key."""
+    keep_sounding: bool = True
+    """A finger that pressed its key last step and holds it sounding keeps pressing, however
+    far its tip has slid across the keys (the thumb's tip slides ~18 mm sideways as it
+    presses: re-aligning let the key go)."""
     stuck_frames: int = 2
     """Steps a finger may hover off its key without moving before it presses from there."""
     stuck_reach_m: float = 0.013
     """How far off its key (across) a stuck finger may be and still press from there."""
+    unwedge: bool = True
+    """A finger that hovers off its key without moving, its tip below the key's top (wedged
+    against the key's side or between two keys), takes its lifted posture for a step to
+    come free, instead of pushing sideways against the key for the rest of the note."""
     still_m: float = 0.0015
     """A fingertip that moved less than this in a step stands still."""
     hover_in_shift: bool = True
@@ -196,6 +204,13 @@ class PlannerConfig:
     damping: float = 0.01
     rest_weight: float = 1e-4
     """Pull towards the sampled start posture (per rad^2, against tip error in m^2)."""
+    thumb_lateral_weight: float = 4.0
+    """Weight of the thumb's error across the keys (y), against along them and up (x, z), in
+    its inverse kinematics. A thumb pressing a white key aims past the key's travel at the
+    edge of its reach, where its joints cannot put the tip both that deep and over the key:
+    unweighted, the solution gave up ~8 mm across (the tip then pressed the crack between
+    two keys, or slid off as it pressed); weighted, it gives up depth, which the key's bottom
+    takes anyway. (Weighting every finger's error so cost the debug chords ~0.009 F1.)"""
     step_limit_rad: float = 0.3
     """Largest change of one joint in one IK iteration."""
     thumb_push_rad: float = 0.3

@@ -39,6 +39,7 @@ class FingerIK:
             finger.set(scratch, finger.angles)
         if not active.any():
             return
+        thumb_weights = np.array([1.0, cfg.thumb_lateral_weight, 1.0])
         for _ in range(cfg.iterations):
             mujoco.mj_kinematics(m, scratch)
             mujoco.mj_comPos(m, scratch)  # mj_jacSite reads cdof and subtree centres
@@ -48,6 +49,9 @@ class FingerIK:
                 error = targets[f] - (scratch.site_xpos[finger.site] - origin)
                 mujoco.mj_jacSite(m, scratch, self.jacp, None, finger.site)
                 J = finger.jacobian(self.jacp)
+                if f == 0:  # the thumb lines up before it goes deep (PlannerConfig)
+                    J = J * thumb_weights[:, None]
+                    error = error * thumb_weights
                 A = J.T @ J + (cfg.damping**2 + cfg.rest_weight) * np.eye(finger.dof)
                 step = np.linalg.solve(A, J.T @ error)
                 step = np.clip(step, -cfg.step_limit_rad, cfg.step_limit_rad)

@@ -128,10 +128,19 @@ class FingerTargets:
                 # A finger that hovers off its key and no longer moves cannot get closer at
                 # that height (the thumb under the palm, say): it goes down from where it is.
                 stuck = self.stuck[finger] >= cfg.stuck_frames and miss <= cfg.stuck_reach_m
+                # A finger holding its key down keeps it, however far across the keys its tip
+                # slid (not one too far along it: that one is over another key).
+                holding = (
+                    cfg.keep_sounding
+                    and self.last_key[finger] == key
+                    and key_down[key]
+                    and np.isfinite(miss)
+                )
                 if (
                     miss <= tolerance
                     or (down and miss <= cfg.keep_pressing_ratio * tolerance)
                     or stuck
+                    or holding
                 ):
                     extra = cfg.thumb_extra_depth_m if finger == 0 else 0.0
                     targets[finger, 2] = top - planner.key_depth[key] - extra
@@ -142,6 +151,9 @@ class FingerTargets:
                     transfer = self.last_key[finger] >= 0 and self.last_key[finger] != key
                     height = cfg.transfer_height_m if transfer else cfg.hover_height_m
                     targets[finger, 2] = top + height
+                    if cfg.unwedge and self.stuck[finger] >= cfg.stuck_frames and down:
+                        # Wedged below the key's top against its side: up and clear first.
+                        targets[finger] = self.lift_tips[finger] + origin
                     hovering[finger] = True
                     self.state[finger] = FingerState.HOVERING
         # Steps each finger has pressed the same key without it sounding (a finger too weak
