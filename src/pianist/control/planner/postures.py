@@ -110,6 +110,8 @@ class HandPostures:
     fingers: list[Finger]
     wrist: list[tuple[int, np.ndarray]]
     # Set here.
+    wrist_bent_up: float
+    """How far (rad) the keys have bent the wrist up from its pose, measured each step."""
     rest_tips: np.ndarray
     lift_tips: np.ndarray
     tip_offset_y: np.ndarray
@@ -178,10 +180,13 @@ class HandPostures:
 
     def set_wrist(self, data, ctrl: np.ndarray | None, cfg: PlannerConfig) -> None:
         pose = cfg.wrist_pose if self.tz_qpos is not None else cfg.wrist_pose_without_tz
-        for (actuator, qpos), angle, gain in zip(
-            self.wrist, pose, cfg.wrist_feedback, strict=False
+        self.wrist_bent_up = 0.0
+        for i, ((actuator, qpos), angle, gain) in enumerate(
+            zip(self.wrist, pose, cfg.wrist_feedback, strict=False)
         ):
             off = float(np.mean(data.qpos[qpos])) - angle
+            if i == 1:  # WRJ1, flexion: the keys push it negative (the hand bends up)
+                self.wrist_bent_up = max(-off, 0.0)
             data.qpos[qpos] = angle  # the fingers are solved for the wrist at its pose
             if ctrl is not None:
                 ctrl[actuator] = angle - gain * off  # a stiffer servo against the swing
