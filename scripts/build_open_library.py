@@ -62,7 +62,6 @@ class Piece:
     note: str = ""
 
 
-
 CHORALE_NOTE = (
     "four-part chorale played on the keyboard: soprano in the right hand, bass in the left, "
     "alto and tenor to either hand as the fingerer finds playable; quarter = 72 (the encoding "

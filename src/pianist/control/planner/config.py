@@ -213,12 +213,15 @@ class PlannerConfig:
     takes anyway. (Weighting every finger's error so cost the debug chords ~0.009 F1.)"""
     step_limit_rad: float = 0.3
     """Largest change of one joint in one IK iteration."""
-    bent_wrist_push: float = 1.0
+    bent_wrist_push: float = 0.0
     """Extra push of a pressing finger per radian the keys have bent the wrist up (rad/rad;
     WRJ1 measured against its pose). The keys of a chord bend the wrist up by 0.1-0.2 rad,
     which lifts the finger that comes last (often the little one) ~1 cm off its key: it
-    pressed, level with the key's top, without sounding it. (2 rad/rad pressed
-    neighbouring keys: open-etude-12 precision 0.949 -> 0.934.)"""
+    presses level with the key's top without sounding it. Off by default: at 1 rad/rad
+    open-etude-12 gains 0.005 (0.777 -> 0.782 fast, 0.774 -> 0.780 faithful), but the
+    original's chord progression loses 0.010 (noisy mean of 8, 0.860 -> 0.853 faithful,
+    0.867 -> 0.857 fast), and the debug songs may not fall; at 2 it pressed neighbouring
+    keys (precision 0.949 -> 0.934)."""
     thumb_push_rad: float = 0.3
     """Extra command of a pressing thumb along the joint direction that lowers its tip."""
     finger_push_rad: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
