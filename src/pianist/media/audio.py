@@ -51,6 +51,7 @@ PEAK_CEILING_DBFS = -1.0
 _BLOCK_S = 0.4
 _ABSOLUTE_GATE_DBFS = -70.0
 _RELATIVE_GATE_DB = -10.0
+_GAIN_ROUNDS = 4  # corrections of the loudness gain (see normalise_loudness)
 
 # Event kinds, in the order they are applied when several happen at the same time: a key
 # released and pressed again at one instant must restart the note, and a pedal change takes
@@ -262,7 +263,18 @@ def normalise_loudness(
     peak = float(np.max(np.abs(x))) if x.size else 0.0
     if not math.isfinite(loudness) or peak == 0.0:
         return x, 0.0
-    gain_db = min(target_dbfs - loudness, ceiling_dbfs - 20 * math.log10(peak))
+    # The -70 dBFS gate is absolute, so scaling moves quiet blocks (release tails) across
+    # it and the loudness is not exactly linear in the gain: correct the gain on the scaled
+    # recording a few times, keeping the closest.
+    gain_db, best, miss = target_dbfs - loudness, target_dbfs - loudness, math.inf
+    for _ in range(_GAIN_ROUNDS):
+        error = target_dbfs - loudness_dbfs(x * np.float32(10 ** (gain_db / 20)), sample_rate)
+        if abs(error) < miss:
+            best, miss = gain_db, abs(error)
+        if abs(error) < 0.01:
+            break
+        gain_db += error
+    gain_db = min(best, ceiling_dbfs - 20 * math.log10(peak))
     return (x * np.float32(10 ** (gain_db / 20))).astype(np.float32), gain_db
 
 
