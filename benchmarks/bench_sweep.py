@@ -70,9 +70,16 @@ def scaling(cells, root: Path, workers: int, repeat: int = 0) -> dict:
         "cells": len(report.rows),
         "failed": report.failed,
         "sum_cell_s": cell_s,
+        "ray_start_s": report.ray_start_s,
+        "ray_stop_s": report.ray_stop_s,
         "load_before": load,
         "f1": _f1_by_cell(out),
     }
+
+
+def _without_ray(run: dict) -> float:
+    """A scaling run's wall time less Ray's start and stop (s)."""
+    return run["wall_s"] - run["ray_start_s"] - run["ray_stop_s"]
 
 
 def _median_run(runs: list[dict]) -> dict:
@@ -197,6 +204,8 @@ def main() -> None:
             "repeats": len(runs[1]),
             "walls_s": {str(w): [run["wall_s"] for run in runs[w]] for w in runs},
             "ratio": two["wall_s"] / one["wall_s"],
+            # The same without Ray's start and stop, which cost the same for 1 and 2 workers.
+            "ratio_without_ray_start_stop": _without_ray(two) / _without_ray(one),
         }
         print(f"{len(cells)} cells: {args.controller} on {args.suites} ({args.physics} physics)")
         print(f"{'run':22s} {'wall s':>8s} {'cells':>6s} {'ok':>4s} {'load':>6s}  notes")
@@ -214,6 +223,14 @@ def main() -> None:
         )
         print(f"{'':22s} walls by worker count ({walls}); the median runs above")
         print(f"{'':22s} 2 workers / 1 worker = {ratio:.2f} (target <= 0.6)")
+        fixed = "; ".join(
+            f"{run['workers']}: start {run['ray_start_s']:.1f} s, stop {run['ray_stop_s']:.1f} s"
+            for run in (one, two)
+        )
+        print(
+            f"{'':22s} Ray's start and stop ({fixed}); without them "
+            f"{results['scaling']['ratio_without_ray_start_stop']:.2f}"
+        )
         reference = one["f1"]
         if "kill" not in skip:
             k = kill(args, root)

@@ -157,6 +157,9 @@ def test_play_sweep_writes_a_row_per_cell_reports_a_failed_cell_and_skips_finish
     report = run_sweep(cells, out, workers=2, message=lines.append)
     assert report.ran == 4 and report.skipped == 0 and report.failed == 2
     assert "RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER" not in os.environ  # set for the local Ray only
+    # Ray's start and stop are timed apart from the cells: the fixed cost of a sweep.
+    assert 0 < report.ray_start_s and 0 < report.ray_stop_s
+    assert report.ray_start_s + report.ray_stop_s < report.wall_s
 
     rows = _rows(out)
     assert [row["id"] for row in rows] == [cell.id for cell in cells]

@@ -63,6 +63,8 @@ class SweepReport:
         ran: cells run in this run.
         nodes: the Ray nodes that ran this run's cells.
         wall_s: seconds from the start of Ray to the last cell (0 when nothing ran).
+        ray_start_s: of which starting (or joining) Ray took this long ...
+        ray_stop_s: ... and stopping (or leaving) it this long: the fixed cost of a sweep.
         files: the table's files.
     """
 
@@ -72,6 +74,8 @@ class SweepReport:
     ran: int
     nodes: set[str] = field(default_factory=set)
     wall_s: float = 0.0
+    ray_start_s: float = 0.0
+    ray_stop_s: float = 0.0
     files: list[Path] = field(default_factory=list)
 
     @property
@@ -191,7 +195,7 @@ def run_sweep(
     if pending:
         start = time.perf_counter()
         report.nodes = _run_on_ray(
-            pending, out, options, workers, address, cpus_per_cell, max_retries, say
+            pending, out, options, workers, address, cpus_per_cell, max_retries, say, report
         )
         report.wall_s = time.perf_counter() - start
     _remove_leftovers(out)
@@ -256,9 +260,13 @@ def _run_on_ray(
     cpus_per_cell: float,
     max_retries: int,
     say: Callable[[str], None],
+    report: SweepReport,
 ) -> set[str]:
-    """Run ``cells`` as Ray tasks; the ids of the nodes that ran them."""
+    """Run ``cells`` as Ray tasks; the ids of the nodes that ran them (Ray's start and stop
+    times go into ``report``)."""
+    started = time.perf_counter()
     ray = _start_ray(workers, address)
+    report.ray_start_s = time.perf_counter() - started
     nodes: set[str] = set()
     try:
         if address is not None:
@@ -294,7 +302,9 @@ def _run_on_ray(
                 nodes.add(record["node"])
             say(f"[{done}/{len(cells)}] {cell.id}: {_outcome(record)}")
     finally:
+        stopping = time.perf_counter()
         ray.shutdown()
+        report.ray_stop_s = time.perf_counter() - stopping
     return nodes
 
 
