@@ -1,18 +1,26 @@
 """The generalist: F1 on held-out pieces, and how it scales with training songs and model size.
 
-``eval``: one behaviour-cloning policy (default: the shipped generalist) plays every song of
-the held-out suites once (seed 0) in NumPy; per song F1, precision, recall and the real-time
-factor (simulated seconds per wall-clock second), and the mean per suite.
+``eval``: one policy (default: the shipped generalist; a fingertip policy folder or a
+behaviour-cloning one) plays every song of the held-out suites once (seed 0, fast physics)
+in NumPy; per song F1, precision, recall and the real-time factor (simulated seconds per
+wall-clock second), and the mean per suite.
 
-``scaling``: the paper's multi-song BC experiment, extended with DAgger. For each number of
-training songs N (the first N songs of a planner demonstration dataset) and each hidden size,
-a policy is trained by behaviour cloning (``--steps`` Adam steps), then ``--dagger-rounds``
-rounds of DAgger on the same N songs, and scored on the held-out suite; also on its own
-training songs (up to 8 of them). The paper's figure is printed beside: BC distilled from
-its RL specialists, <= ~0.15 zero-shot on etude-12.
+``fingertip-scaling``: the same experiment for the fingertip policy (the shipped design,
+:mod:`pianist.agents.fingertip.training`): for each N, a policy trained on the first N songs
+of a corpus folder (the expert's recordings, a fit, ``--rounds`` of DAgger), scored on the
+held-out suite.
+
+``scaling``: the paper's multi-song BC experiment (joint angles), extended with DAgger. For
+each number of training songs N (the first N songs of a planner demonstration dataset) and
+each hidden size, a policy is trained by behaviour cloning (``--steps`` Adam steps), then
+``--dagger-rounds`` rounds of DAgger on the same N songs, and scored on the held-out suite;
+also on its own training songs (up to 8 of them). The paper's figure is printed beside: BC
+distilled from its RL specialists, <= ~0.15 zero-shot on etude-12.
 
 Run:
     python benchmarks/bench_generalist.py eval [--policy DIR] [--suites open-etude-12,debug]
+    python benchmarks/bench_generalist.py fingertip-scaling --corpus corpus/chorales-all \
+        [--sizes 1,8,32,120] [--rounds 1]
     python benchmarks/bench_generalist.py scaling --dataset pianist/chorales-planner-v0 \
         [--root DIR] [--sizes 1,8,32,128] [--hidden 256,512] [--dagger-rounds 2]
 Both print a table and, with ``--json FILE``, write it.
@@ -45,6 +53,23 @@ from pianist.music import list_songs
 PAPER_BC_ETUDE12 = "<= ~0.15"
 
 
+def evaluate_fingertip(policy: Any, songs: list[str]) -> dict[str, dict[str, float]]:
+    """Each song played once (seed 0, fast physics) by a fingertip policy (or its folder)."""
+    from pianist.agents.fingertip import FingertipController
+    from pianist.eval.session import play
+
+    rows: dict[str, dict[str, float]] = {}
+    for song in songs:
+        m = play(song, FingertipController(policy), physics="fast", seed=0).metrics
+        rows[song] = {
+            "f1": m["f1"],
+            "precision": m["precision"],
+            "recall": m["recall"],
+            "rtf": m["realtime_factor"],
+        }
+    return rows
+
+
 def evaluate(policy: BCPolicy, songs: list[str], seed: int = 0) -> dict[str, dict[str, float]]:
     """Each song played once by ``policy``: F1, precision, recall, real-time factor."""
     env = MultiSongEnv(songs, **policy.env_options)
@@ -64,11 +89,19 @@ def _mean(rows: dict[str, dict[str, float]], key: str = "f1") -> float:
 
 
 def cmd_eval(args: argparse.Namespace) -> dict[str, Any]:
-    policy = load_policy(args.policy)
+    from pianist.agents import fingertip
+
+    policy: Any
+    if (args.policy / fingertip.controller.CONFIG_FILE).is_file():
+        policy = fingertip.load_policy(args.policy)
+        play_all: Any = evaluate_fingertip
+    else:
+        policy = load_policy(args.policy)
+        play_all = evaluate
     result: dict[str, Any] = {"policy": str(args.policy), "info": policy.info, "suites": {}}
     print(f"{'suite':18s} {'song':40s} {'F1':>6s} {'P':>6s} {'R':>6s} {'rtf':>6s}")
     for suite in args.suites.split(","):
-        rows = evaluate(policy, list_songs(suite))
+        rows = play_all(policy, list_songs(suite))
         for song, row in rows.items():
             print(
                 f"{suite:18s} {song:40s} {row['f1']:6.3f} {row['precision']:6.3f} "
@@ -80,6 +113,42 @@ def cmd_eval(args: argparse.Namespace) -> dict[str, Any]:
             f"{mean['recall']:6.3f} {mean['rtf']:6.1f}"
         )
         result["suites"][suite] = {"songs": rows, "mean": mean}
+    return result
+
+
+def cmd_fingertip_scaling(args: argparse.Namespace) -> dict[str, Any]:
+    from pianist.agents.fingertip.training import FitConfig, train
+
+    songs = sorted(str(p) for p in Path(args.corpus).glob("*.txt"))
+    held_out = list_songs(args.held_out)
+    result: dict[str, Any] = {
+        "corpus": str(args.corpus),
+        "held_out": args.held_out,
+        "rounds": args.rounds,
+        "paper_bc_etude12": PAPER_BC_ETUDE12,
+        "rows": [],
+    }
+    print(f"{'songs':>5s} {'train F1':>8s} {'held-out F1':>11s} {'minutes':>7s}")
+    for size in [int(s) for s in args.sizes.split(",")]:
+        if size > len(songs):
+            raise SystemExit(f"the corpus has {len(songs)} songs, not {size}")
+        start = time.perf_counter()
+        policy = train(songs[:size], args.rounds, FitConfig(seed=args.seed), workers=2)
+        own = evaluate_fingertip(policy, songs[: min(size, 8)])
+        test = evaluate_fingertip(policy, held_out)
+        row = {
+            "songs": size,
+            "train_f1": _mean(own),
+            "held_out_f1": _mean(test),
+            "held_out": {k: v["f1"] for k, v in test.items()},
+            "history": policy.info["history"],
+            "minutes": (time.perf_counter() - start) / 60,
+        }
+        result["rows"].append(row)
+        print(
+            f"{size:5d} {row['train_f1']:8.3f} {row['held_out_f1']:11.3f} {row['minutes']:7.1f}",
+            flush=True,
+        )
     return result
 
 
@@ -143,6 +212,12 @@ def main() -> None:
     ev = sub.add_parser("eval", help="score one policy on held-out suites")
     ev.add_argument("--policy", type=Path, default=GENERALIST_DIR)
     ev.add_argument("--suites", default="open-etude-12,debug,robopianist-debug")
+    fs = sub.add_parser("fingertip-scaling", help="the fingertip policy against training songs")
+    fs.add_argument("--corpus", required=True, help="a folder of training songs (.txt)")
+    fs.add_argument("--sizes", default="1,8,32,120")
+    fs.add_argument("--rounds", type=int, default=1)
+    fs.add_argument("--held-out", default="open-etude-12")
+    fs.add_argument("--seed", type=int, default=0)
     sc = sub.add_parser("scaling", help="held-out F1 against training songs and model size")
     sc.add_argument("--dataset", required=True, help="a planner demonstration dataset id")
     sc.add_argument("--root", default=None, help="where datasets are stored")
@@ -152,10 +227,15 @@ def main() -> None:
     sc.add_argument("--dagger-rounds", type=int, default=2)
     sc.add_argument("--held-out", default="open-etude-12")
     sc.add_argument("--seed", type=int, default=0)
-    for p in (ev, sc):
+    for p in (ev, fs, sc):
         p.add_argument("--json", type=Path, default=None, help="also write the results here")
     args = parser.parse_args()
-    result = cmd_eval(args) if args.command == "eval" else cmd_scaling(args)
+    commands = {
+        "eval": cmd_eval,
+        "fingertip-scaling": cmd_fingertip_scaling,
+        "scaling": cmd_scaling,
+    }
+    result = commands[args.command](args)
     if args.json:
         args.json.write_text(json.dumps(result, indent=1) + "\n")
 

@@ -1,24 +1,26 @@
-"""The generalist shipped with the package: one behaviour-cloning policy for any song.
+"""The generalist shipped with the package: one policy for any song, trained on none of them.
 
 ``pianist play SONG --controller generalist`` plays with it right after install, in NumPy,
-with no training and no planner at play time: a :class:`pianist.agents.bc.BCPolicy` (an MLP on
-the environment's state and goal) stored in ``pianist/agents/data/generalist/``. It was trained
-by DAgger with the IK planner as the expert on Bach chorales of the music21 corpus cut into
-segments; ``open-etude-12`` and the debug songs were held out. How to train it again, and what
-it scores on the held-out pieces: ``docs/generalist.md``.
+with no training and no plan at play time: a :class:`pianist.agents.fingertip.FingertipPolicy`
+(an MLP that, per hand and step, says where the forearm goes and what each finger does, from
+the next second of the song and the hand's state), played through the planner's execution
+stages (the slide's servo, fingertip targets, inverse kinematics). Stored in
+``pianist/agents/data/generalist/``. It was trained by DAgger with the IK planner as the
+expert on Bach chorales of the music21 corpus cut into segments; ``open-etude-12`` and the
+debug songs were held out. How to train it again, and what it scores: ``docs/generalist.md``.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from pianist.agents.bc import CONFIG_FILE, BCController
+from pianist.agents.fingertip.controller import CONFIG_FILE, FingertipController
 
-#: The shipped policy's folder (``bc.json``, ``weights.npz``).
+#: The shipped policy's folder (``fingertip.json``, ``weights.npz``).
 GENERALIST_DIR = Path(__file__).resolve().parent / "data" / "generalist"
 
 
-def generalist_controller() -> BCController:
+def generalist_controller() -> FingertipController:
     """The shipped generalist as a controller (``--controller generalist``).
 
     Raises:
@@ -28,4 +30,4 @@ def generalist_controller() -> BCController:
         raise FileNotFoundError(
             f"the generalist's weights are missing from {GENERALIST_DIR}; reinstall pianist"
         )
-    return BCController(GENERALIST_DIR)
+    return FingertipController(GENERALIST_DIR)

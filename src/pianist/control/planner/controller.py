@@ -71,6 +71,42 @@ class IKPlanner(BaseController):
         return dict(PAPER_ENV_OPTIONS if self.config.paper_embodiment else ENV_OPTIONS)
 
     def reset(self, env: gym.Env, seed: int | None = None) -> None:
+        self.setup(env)
+        goal, handle, cfg = self.goal, self.handle, self.config
+        key = (id(goal), handle.scene.options, cfg)
+        cached = _PLANS.get(key)
+        if cached is not None and cached[0]() is goal:
+            # The same song in the same scene (a new episode): the plan is the same.
+            self._restore(cached[1])
+            return
+        if cfg.hand_planning == "best":
+            candidates = [("frame", False), ("piece", False), ("piece", True)]
+            plans = []
+            for kind, refinger in candidates:
+                playable = self._plan(goal, kind, refinger)
+                plans.append((playable, self._snapshot((kind, refinger))))
+            enough = max(n for n, _ in plans) - cfg.piece_plan_margin * goal.keys.sum()
+            chosen = next(plan for n, plan in plans if n >= enough)
+            self._restore(chosen)
+        else:
+            refinger = cfg.hand_planning == "split" or (
+                cfg.refinger and cfg.hand_planning == "piece"
+            )
+            self.plan_kind = (cfg.hand_planning, refinger)
+            self._plan(goal, *self.plan_kind)
+            chosen = self._snapshot(self.plan_kind)
+        if len(_PLANS) >= _PLANS_KEPT:
+            del _PLANS[next(iter(_PLANS))]
+        _PLANS[key] = (weakref.ref(goal), chosen)
+
+    def setup(self, env: gym.Env) -> None:
+        """The per-episode set-up without the plan: the keys' press points and heights, the
+        hands with their posture samples and lifted postures (what the execution stages need;
+        :class:`pianist.agents.fingertip` acts with them and no plan).
+
+        Raises:
+            ValueError: the song has unfingered notes.
+        """
         handle = control_handle(env)
         goal = handle.goal
         if np.any(goal.keys & (goal.fingers < 0)):
@@ -105,31 +141,6 @@ class IKPlanner(BaseController):
         # (T, 10) each finger's FingerState per step, as played (see plan_arrays).
         self.finger_states = np.zeros((goal.num_frames, 2 * FINGERS_PER_HAND), dtype=np.int8)
         _use_postures(m, self.scratch, self.hands, cfg, handle.scene.options)
-        key = (id(goal), handle.scene.options, cfg)
-        cached = _PLANS.get(key)
-        if cached is not None and cached[0]() is goal:
-            # The same song in the same scene (a new episode): the plan is the same.
-            self._restore(cached[1])
-            return
-        if cfg.hand_planning == "best":
-            candidates = [("frame", False), ("piece", False), ("piece", True)]
-            plans = []
-            for kind, refinger in candidates:
-                playable = self._plan(goal, kind, refinger)
-                plans.append((playable, self._snapshot((kind, refinger))))
-            enough = max(n for n, _ in plans) - cfg.piece_plan_margin * goal.keys.sum()
-            chosen = next(plan for n, plan in plans if n >= enough)
-            self._restore(chosen)
-        else:
-            refinger = cfg.hand_planning == "split" or (
-                cfg.refinger and cfg.hand_planning == "piece"
-            )
-            self.plan_kind = (cfg.hand_planning, refinger)
-            self._plan(goal, *self.plan_kind)
-            chosen = self._snapshot(self.plan_kind)
-        if len(_PLANS) >= _PLANS_KEPT:
-            del _PLANS[next(iter(_PLANS))]
-        _PLANS[key] = (weakref.ref(goal), chosen)
 
     def _snapshot(self, kind: tuple[str, bool]) -> tuple[Any, ...]:
         """The plan just made (its arrays are rebound, never changed, by later plans)."""

@@ -321,6 +321,10 @@ class ForearmPlan:
         t = min(t, len(self.tx_path) - 3)
         state = np.array([data.qpos[self.tx_qpos], data.qvel[self.tx_dof]])
         ctrl[self.tx_actuator] = self.tx_servo.command(state, self.tx_path[t + 1])
+        self.command_height(ctrl, data, cfg)
+
+    def command_height(self, ctrl: np.ndarray, data, cfg: PlannerConfig) -> None:
+        """Write the height slide's command (m) into ``ctrl``, when the scene has one."""
         if self.tz_actuator is not None:
             assert self.tz_qpos is not None and self.tz_range is not None  # set with tz_actuator
             # The keys push the hand up (about a centimetre under a chord): pressing harder the

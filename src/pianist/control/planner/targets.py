@@ -59,6 +59,9 @@ class FingerTargets:
     unsounded: np.ndarray
     state: np.ndarray
     """(5,) the :class:`FingerState` of each finger this step."""
+    active: np.ndarray
+    """(5,) bool: which fingers had a target this step (the others took their lifted
+    posture)."""
 
     def fingertip_targets(
         self, planner: PlannerState, now: int, hover_end: int
@@ -90,6 +93,7 @@ class FingerTargets:
             self.state[active] = FingerState.TRAVELLING
             active[far] = False
             targets[far] = self.lift_tips[far] + origin
+            self.active = active.copy()
             return targets - origin, active
         lead = min(now + cfg.press_lead_frames, goal.num_frames - 1)
         key_down = planner.handle.data.qpos[planner.key_qpos] >= planner.key_threshold
@@ -156,19 +160,7 @@ class FingerTargets:
                         targets[finger] = self.lift_tips[finger] + origin
                     hovering[finger] = True
                     self.state[finger] = FingerState.HOVERING
-        # Steps each finger has pressed the same key without it sounding (a finger too weak
-        # for it, on the top of the key: the IK pushes such a finger harder).
-        again = self.pressing & (pressed_key == self.last_key)
-        sounding = key_down[np.maximum(pressed_key, 0)] & (pressed_key >= 0)
-        # Once pushed harder, a finger keeps that push while it holds the key: the key's
-        # sounding band is the last 0.5 degrees of its travel, and a finger that eased off
-        # as soon as the key sounded would let it flicker in and out of it.
-        latched = again & (self.unsounded >= cfg.unsounded_steps) & cfg.unsounded_latch
-        self.unsounded = np.where(again & ~sounding, self.unsounded + 1, 0)
-        self.unsounded = np.where(
-            latched, np.maximum(self.unsounded, cfg.unsounded_steps), self.unsounded
-        )
-        pushed = self.pressing & (self.unsounded >= cfg.unsounded_steps)  # see ik.py
+        pushed = self.count_unsounded(pressed_key, key_down, cfg)
         self.state[pushed] = FingerState.PUSHING
         # A finger keeps its last key while it presses or hovers on its way to the next one.
         self.last_key = np.where(self.pressing, pressed_key, np.where(hovering, self.last_key, -1))
@@ -181,7 +173,31 @@ class FingerTargets:
                 break  # keys past a shift are out of reach from here
             self._hover_over(planner, t, targets, active)
         self.state[active & (self.state == FingerState.LIFTED)] = FingerState.HOVERING
+        self.active = active.copy()
         return targets - origin, active
+
+    def count_unsounded(self, pressed_key: np.ndarray, key_down: np.ndarray, cfg) -> np.ndarray:
+        """Count the steps each finger has pressed the same key without it sounding (a finger
+        too weak for it, on the top of the key: the IK pushes such a finger harder).
+
+        Args:
+            pressed_key: (5,) int, the key each finger presses this step (-1: none); the
+                fingers' ``pressing`` flags are set, ``last_key`` is still last step's.
+            key_down: (88,) bool, which keys are down now.
+        Returns:
+            (5,) bool: the fingers to push harder this step (``unsounded`` updated).
+        """
+        again = self.pressing & (pressed_key == self.last_key)
+        sounding = key_down[np.maximum(pressed_key, 0)] & (pressed_key >= 0)
+        # Once pushed harder, a finger keeps that push while it holds the key: the key's
+        # sounding band is the last 0.5 degrees of its travel, and a finger that eased off
+        # as soon as the key sounded would let it flicker in and out of it.
+        latched = again & (self.unsounded >= cfg.unsounded_steps) & cfg.unsounded_latch
+        self.unsounded = np.where(again & ~sounding, self.unsounded + 1, 0)
+        self.unsounded = np.where(
+            latched, np.maximum(self.unsounded, cfg.unsounded_steps), self.unsounded
+        )
+        return self.pressing & (self.unsounded >= cfg.unsounded_steps)  # see ik.py
 
     def _hover_over(
         self, planner: PlannerState, frame: int, targets: np.ndarray, active: np.ndarray

@@ -1,0 +1,314 @@
+"""The fingertip policy as a controller: an MLP decides, the planner's execution stages act.
+
+Each step, for each hand, the policy (:mod:`features`) says where the forearm's slide should
+be at the end of the next step and what each finger does (:class:`Mode`); this module turns
+that into the action with the planner's fixed stages and no plan:
+
+1. the slide is steered to the policy's target through its servo's exact dynamics (the
+   planner's ``_Servo``), the height slide and the wrist held as the planner holds them;
+2. each finger's fingertip target follows from its mode and its next key by the song's
+   fingering: below the key's top (press), above it (hover, re-strike), or the lifted
+   posture; a pressing finger whose key does not sound is pushed harder, as the planner does;
+3. the planner's per-finger inverse kinematics turns the targets into joint commands.
+
+So a press is a decision (a class), not an average of joint angles: what behaviour cloning of
+joint angles could not learn (``docs/generalist.md``).
+"""
+
+from __future__ import annotations
+
+import json
+import zipfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+
+from pianist.agents.bc import NumpyMLP
+from pianist.agents.fingertip.features import (
+    FEATURE_DIM,
+    FINGERS,
+    MOVE_UNIT_M,
+    NUM_MODES,
+    OUTPUT_DIM,
+    SPEED_UNIT,
+    WINDOW,
+    HandView,
+    Mode,
+    NextKeys,
+    decode_move,
+    encode_move,
+    hand_features,
+)
+from pianist.control.base import BaseController
+from pianist.control.planner import ENV_OPTIONS, IKPlanner, PlannerConfig
+from pianist.control.planner.forearm import _Servo
+from pianist.files import atomic_dir
+from pianist.sim import constants as C
+
+FORMAT = "pianist-fingertip"
+VERSION = 1
+CONFIG_FILE = "fingertip.json"
+WEIGHTS_FILE = "weights.npz"
+
+
+def step_features(p: IKPlanner, nxt: NextKeys, t: int, last_modes: np.ndarray) -> np.ndarray:
+    """Every hand's features at step ``t`` (``p`` set up: :meth:`IKPlanner.setup`), shape
+    (H, :data:`FEATURE_DIM`), hands in the scene's order; ``last_modes`` (10,) int."""
+    data = p.handle.data
+    key_down = data.qpos[p.key_qpos] >= p.key_threshold
+    roots = [hand.root_y + data.qpos[hand.tx_qpos] for hand in p.hands]
+    rows = []
+    for i, hand in enumerate(p.hands):
+        others = [roots[j] - roots[i] for j in range(len(p.hands)) if j != i]
+        origin = data.xpos[hand.forearm_body]
+        lo = float(hand.tx_range[0])
+        hi = float(hand.tx_range[1])
+        view = HandView(
+            sign=1.0 if hand.side == "right" else -1.0,
+            finger_offset=hand.finger_offset,
+            tx=float(data.qpos[hand.tx_qpos]),
+            tx_vel=float(data.qvel[hand.tx_dof]),
+            tx_mid=(lo + hi) / 2,
+            tx_half=(hi - lo) / 2,
+            other_y=others[0] if others else None,
+            tip_offset_y=hand.tip_offset_y,
+            tips=data.site_xpos[hand.sites],
+            lift_tips=hand.lift_tips + origin,
+        )
+        off = hand.finger_offset
+        rows.append(
+            hand_features(
+                view,
+                t,
+                p.goal.keys,
+                p.goal.fingers,
+                nxt,
+                p.key_point,
+                p.key_top_z,
+                key_down,
+                last_modes[off : off + FINGERS],
+            )
+        )
+    return np.stack(rows)
+
+
+@dataclass
+class FingertipPolicy:
+    """A trained fingertip policy: the network (features -> outputs) and facts about it."""
+
+    net: NumpyMLP
+    info: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if self.net.obs_dim != FEATURE_DIM or self.net.action_dim != OUTPUT_DIM:
+            raise ValueError(
+                f"a fingertip network maps {FEATURE_DIM} -> {OUTPUT_DIM} values, this one "
+                f"{self.net.obs_dim} -> {self.net.action_dim} (made by another version)"
+            )
+
+
+def save_policy(policy: FingertipPolicy, out: str | Path) -> Path:
+    """Write ``policy`` to the folder ``out`` (replaced whole, or not at all)."""
+    net = policy.net
+    arrays: dict[str, np.ndarray] = {"mean": net.mean, "std": net.std}
+    for i, (w, b) in enumerate(net.layers):
+        arrays[f"W{i}"], arrays[f"b{i}"] = w, b
+    meta = {
+        "format": FORMAT,
+        "version": VERSION,
+        "layers": len(net.layers),
+        "activation": net.activation_name,
+        "window": WINDOW,
+        "info": policy.info,
+    }
+    out = Path(out)
+    with atomic_dir(out) as tmp:
+        np.savez(tmp / WEIGHTS_FILE, allow_pickle=False, **arrays)
+        (tmp / CONFIG_FILE).write_text(json.dumps(meta, indent=2) + "\n")
+    return out
+
+
+def load_policy(folder: str | Path) -> FingertipPolicy:
+    """The policy :func:`save_policy` wrote to ``folder``.
+
+    Raises:
+        FileNotFoundError: no fingertip policy there.
+        ValueError: a damaged file or another version's.
+    """
+    folder = Path(folder)
+    if not (folder / CONFIG_FILE).is_file():
+        raise FileNotFoundError(f"{folder} holds no fingertip policy (no {CONFIG_FILE})")
+    try:
+        meta = json.loads((folder / CONFIG_FILE).read_text())
+        if meta.get("format") != FORMAT or meta.get("version") != VERSION:
+            raise ValueError(f"unknown format {meta.get('format')} v{meta.get('version')}")
+        with np.load(folder / WEIGHTS_FILE, allow_pickle=False) as z:
+            layers = [(z[f"W{i}"], z[f"b{i}"]) for i in range(int(meta["layers"]))]
+            mean, std = z["mean"], z["std"]
+        net = NumpyMLP(layers, mean, std, meta["activation"])
+        return FingertipPolicy(net, meta.get("info", {}))
+    except (OSError, KeyError, TypeError, ValueError, zipfile.BadZipFile) as exc:
+        raise ValueError(f"{folder} is not a readable fingertip policy ({exc})") from None
+
+
+class FingertipController(BaseController):
+    """Plays any fingered song with a :class:`FingertipPolicy` (no plan, no look-ahead past
+    :data:`WINDOW` frames). ``expert``: an :class:`IKPlanner` run in lock-step on the same
+    states whose decisions are recorded as labels (DAgger), not played."""
+
+    def __init__(
+        self,
+        policy: FingertipPolicy | str | Path,
+        config: PlannerConfig | None = None,
+        expert: ExpertRecorder | None = None,
+    ) -> None:
+        self.policy = policy if isinstance(policy, FingertipPolicy) else load_policy(policy)
+        self.config = config or PlannerConfig()
+        self.expert = expert
+
+    def env_options(self, song: Any = None) -> dict[str, Any]:
+        """The planner's scene (forearm height slide), whatever the song."""
+        return dict(ENV_OPTIONS)
+
+    def reset(self, env: gym.Env, seed: int | None = None) -> None:
+        self.stages = IKPlanner(self.config)
+        self.stages.setup(env)
+        p = self.stages
+        self.next_keys = NextKeys.of(p.goal.keys, p.goal.fingers)
+        self.servos = [_Servo(p.model, h.tx_actuator, h.tx_dof, p.dt) for h in p.hands]
+        self.last_modes = np.zeros(2 * FINGERS, dtype=int)
+        if self.expert is not None:
+            self.expert.reset(env, seed)
+
+    def act(self, observation: object = None) -> np.ndarray:
+        p = self.stages
+        cfg, handle, m, scratch = p.config, p.handle, p.model, p.scratch
+        data = handle.data
+        T = p.goal.num_frames
+        t = min(handle.step_index, T - 1)
+        if self.expert is not None:
+            self.expert.act(observation)  # labels this state; its action is not played
+        out = self.decide(t)
+        if self.expert is not None:
+            # The policy's own view of the state, with the expert's decisions as its labels.
+            self.expert.features[-1] = self.features
+        ctrl = np.array(data.ctrl)
+        scratch.qpos[:] = data.qpos
+        for hand, servo, o in zip(p.hands, self.servos, out, strict=True):
+            sign = 1.0 if hand.side == "right" else -1.0
+            tx, vel = float(data.qpos[hand.tx_qpos]), float(data.qvel[hand.tx_dof])
+            move, speed = decode_move(o[0], MOVE_UNIT_M), decode_move(o[1], SPEED_UNIT)
+            target = np.array([tx + sign * move, sign * speed])
+            ctrl[hand.tx_actuator] = servo.command(np.array([tx, vel]), target)
+            hand.command_height(ctrl, data, cfg)
+            hand.set_wrist(scratch, ctrl, cfg)
+            # As the planner: aim from where the moving forearm will be a little later.
+            scratch.qpos[hand.tx_qpos] += cfg.forearm_lead_s * data.qvel[hand.tx_dof]
+        mujoco.mj_kinematics(m, scratch)
+        key_down = data.qpos[p.key_qpos] >= p.key_threshold
+        for hand, o in zip(p.hands, out, strict=True):
+            modes = np.argmax(o[2:].reshape(FINGERS, NUM_MODES), axis=1)
+            targets, active, pressed = self._targets(hand, t, modes)
+            hand.pressing = pressed >= 0
+            hand.count_unsounded(pressed, key_down, cfg)
+            hand.last_key = pressed
+            hand.solve(m, scratch, targets, active, cfg)
+            ctrl[hand.finger_actuators] = hand.finger_controls(scratch)
+            off = hand.finger_offset
+            self.last_modes[off : off + FINGERS] = np.where(active, modes, Mode.LIFT)
+        action = np.empty(m.nu + 1)
+        action[:-1] = handle.ctrl_to_action(ctrl)
+        press_frame = min(t + cfg.press_lead_frames, T - 1)
+        action[-1] = 1.0 if p.goal.sustain[press_frame] else -1.0
+        return action.astype(np.float32)
+
+    def decide(self, t: int) -> np.ndarray:
+        """The policy's outputs for every hand at step ``t``, (H, :data:`OUTPUT_DIM`)."""
+        self.features = step_features(self.stages, self.next_keys, t, self.last_modes)
+        return self.policy.net(self.features)
+
+    def _targets(self, hand, t: int, modes: np.ndarray) -> tuple[np.ndarray, ...]:
+        """(5, 3) fingertip targets relative to the forearm, (5,) bool which fingers have
+        one, (5,) int the key each presses (-1: none), from the fingers' modes."""
+        p, cfg, nxt = self.stages, self.stages.config, self.next_keys
+        radius = C.FINGERTIP_CAPSULE_RADIUS_M
+        origin = p.scratch.xpos[hand.forearm_body]
+        targets = hand.lift_tips + origin
+        active = np.zeros(FINGERS, dtype=bool)
+        pressed = np.full(FINGERS, -1)
+        for f in range(FINGERS):
+            g = hand.finger_offset + f
+            frame = nxt.frame[g, t]
+            if modes[f] == Mode.LIFT or frame < 0 or frame >= t + WINDOW:
+                continue
+            key = int(nxt.key[g, t])
+            point = hand._press_point(p, key, f)
+            top = p.key_top_z[key] + radius
+            if modes[f] == Mode.PRESS:
+                extra = cfg.thumb_extra_depth_m if f == 0 else 0.0
+                point[2] = top - p.key_depth[key] - extra
+                pressed[f] = key
+            elif modes[f] == Mode.RESTRIKE:
+                point[2] = top + cfg.release_height_m
+            else:
+                point[2] = top + cfg.hover_height_m
+            targets[f] = point
+            active[f] = True
+        return targets - origin, active, pressed
+
+
+class ExpertRecorder(IKPlanner):
+    """The planner, recording for every step it acts the policy's features of that state and
+    its own decisions as the policy's outputs (its labels): ``features`` and ``labels``,
+    lists of (H, D) and (H, :data:`OUTPUT_DIM`) arrays."""
+
+    def reset(self, env: gym.Env, seed: int | None = None) -> None:
+        super().reset(env, seed)
+        self.next_keys = NextKeys.of(self.goal.keys, self.goal.fingers)
+        self.last_modes = np.zeros(2 * FINGERS, dtype=int)
+        self.features: list[np.ndarray] = []
+        self.labels: list[np.ndarray] = []
+
+    def act(self, observation: object = None) -> np.ndarray:
+        data = self.handle.data
+        T = self.goal.num_frames
+        t = min(self.handle.step_index, T - 1)
+        x = step_features(self, self.next_keys, t, self.last_modes)
+        before = [(float(data.qpos[h.tx_qpos])) for h in self.hands]
+        action = super().act(observation)
+        y = np.zeros((len(self.hands), OUTPUT_DIM), dtype=np.float32)
+        for i, hand in enumerate(self.hands):
+            sign = 1.0 if hand.side == "right" else -1.0
+            pos, vel = hand.tx_path[min(t, len(hand.tx_path) - 3) + 1]
+            y[i, 0] = encode_move(sign * (pos - before[i]), MOVE_UNIT_M)
+            y[i, 1] = encode_move(sign * vel, SPEED_UNIT)
+            modes = _modes(hand, self.fingers, t, self.next_keys)
+            onehot = -np.ones((FINGERS, NUM_MODES), dtype=np.float32)
+            onehot[np.arange(FINGERS), modes] = 1.0
+            y[i, 2:] = onehot.ravel()
+            off = hand.finger_offset
+            self.last_modes[off : off + FINGERS] = modes
+        self.features.append(x)
+        self.labels.append(np.clip(y, -1.0, 1.0))
+        return action
+
+
+def _modes(hand, fingers: np.ndarray, t: int, nxt: NextKeys) -> np.ndarray:
+    """(5,) each finger's :class:`Mode` this step as the planner played it; a finger whose
+    next key (by the song's fingering) is not in the window, or not the one the planner
+    targets, counts as lifted (the policy's decoding could not follow it)."""
+    from pianist.agents.fingertip.features import mode_of
+
+    modes = np.array(
+        [mode_of(int(s), bool(a)) for s, a in zip(hand.state, hand.active, strict=True)]
+    )
+    for f in range(FINGERS):
+        g = hand.finger_offset + f
+        frame = nxt.frame[g, t]
+        if frame < 0 or frame >= t + WINDOW:
+            modes[f] = Mode.LIFT
+    return modes
