@@ -43,6 +43,43 @@ def _rows(out: Path) -> list[dict[str, str]]:
         return list(csv.DictReader(f))
 
 
+def _descendants(pid: int) -> set[int]:
+    """The processes under ``pid``, from Linux's /proc."""
+    children: dict[int, list[int]] = {}
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            # "pid (command) state ppid ...": the command may hold spaces and parentheses.
+            ppid = int(stat.read_text().rsplit(")", 1)[1].split()[1])
+        except (OSError, IndexError, ValueError):
+            continue
+        children.setdefault(ppid, []).append(int(stat.parent.name))
+    found: set[int] = set()
+    todo = [pid]
+    while todo:
+        for child in children.get(todo.pop(), []):
+            if child not in found:
+                found.add(child)
+                todo.append(child)
+    return found
+
+
+def _running(pids: set[int], wait_s: float = 5.0) -> set[int]:
+    """Which of ``pids`` still run (zombies do not) after up to ``wait_s`` seconds."""
+    deadline = time.monotonic() + wait_s
+    while True:
+        alive = set()
+        for pid in pids:
+            try:
+                state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+            except (OSError, IndexError):
+                continue
+            if state != "Z":
+                alive.add(pid)
+        if not alive or time.monotonic() > deadline:
+            return alive
+        time.sleep(0.1)
+
+
 # --- the grid (no Ray) ---------------------------------------------------------------------
 
 
@@ -147,6 +184,21 @@ def test_list_prints_the_cells_without_running_them(tmp_path, capsys):
 # --- sweeps on a local Ray -----------------------------------------------------------------
 
 
+def test_a_ray_whose_internals_differ_falls_back_to_its_public_start(monkeypatch, tmp_path):
+    import pianist.sweep.runner as runner
+
+    def other_ray(ray, workers):
+        raise TypeError("__init__() got an unexpected keyword argument 'include_log_monitor'")
+
+    monkeypatch.setattr(runner, "_start_local_ray", other_ray)
+    cells = expand("play", [(SONG, "debug")], ["zero"], ["fast"], [0])
+    report = run_sweep(cells, tmp_path / "out", workers=1, message=lambda line: None)
+    assert report.ran == 1 and report.failed == 0 and report.ray_start_s > 0
+    import ray
+
+    assert not ray.is_initialized()  # stopped at the end as before
+
+
 def test_play_sweep_writes_a_row_per_cell_reports_a_failed_cell_and_skips_finished_cells(
     tmp_path,
 ):
@@ -154,12 +206,22 @@ def test_play_sweep_writes_a_row_per_cell_reports_a_failed_cell_and_skips_finish
     songs = [(SONG, "debug"), ("no-such-song", "songs")]
     cells = expand("play", songs, ["zero", "random"], ["fast"], [0])
     lines: list[str] = []
-    report = run_sweep(cells, out, workers=2, message=lines.append)
+    ray_processes: set[int] = set()
+
+    def message(line: str) -> None:
+        lines.append(line)
+        if line.startswith("running ") and not ray_processes:  # the local Ray is up
+            ray_processes.update(_descendants(os.getpid()))
+
+    report = run_sweep(cells, out, workers=2, message=message)
     assert report.ran == 4 and report.skipped == 0 and report.failed == 2
     assert "RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER" not in os.environ  # set for the local Ray only
     # Ray's start and stop are timed apart from the cells: the fixed cost of a sweep.
     assert 0 < report.ray_start_s and 0 < report.ray_stop_s
     assert report.ray_start_s + report.ray_stop_s < report.wall_s
+    # Every process of the local Ray (its services, agents and workers) is gone at the end.
+    if Path("/proc/self/stat").exists():
+        assert len(ray_processes) >= 3 and not _running(ray_processes)
 
     rows = _rows(out)
     assert [row["id"] for row in rows] == [cell.id for cell in cells]

@@ -6,7 +6,8 @@ table from the cells' folders at the end (:mod:`pianist.sweep.table`).
 
 - Local (``address=None``): an embedded Ray started with ``workers`` CPUs, no dashboard, its
   workers' output not forwarded, a small object store (cells return a record of a few KiB;
-  results go to files), listening on the loopback interface only; shut down at the end.
+  results go to files), listening on the loopback interface only, without the autoscaler's
+  monitor and the log monitor (:func:`_start_local_ray`); stopped at the end.
 - Cluster (``address="HOST:PORT"`` of a ``ray start --head``): every node needs this package
   installed and must see ``out`` at the same path (a shared filesystem), since each cell
   writes its own folder there.
@@ -211,44 +212,121 @@ def run_sweep(
 
 
 _LOCAL_RAY_ENV = {"RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER": "0", "RAY_USAGE_STATS_ENABLED": "0"}
+_QUIET: dict[str, Any] = {"log_to_driver": False, "logging_level": logging.ERROR}
 
 
-def _start_ray(workers: int, address: str | None) -> Any:
-    quiet: dict[str, Any] = {"log_to_driver": False, "logging_level": logging.ERROR}
+def _start_ray(workers: int, address: str | None) -> tuple[Any, Callable[[], None]]:
+    """Start a local Ray of ``workers`` CPUs (``address`` None) or join the cluster at
+    ``address``: the ``ray`` module and the function that stops (or leaves) it."""
     if address is None:
         # A local sweep needs no network: Ray then binds its services to the loopback
         # interface (as it does on macOS) instead of the machine's address, and reports
-        # nothing home. Ray reads these when imported, and its processes inherit them at
-        # ray.init; this process's environment is restored afterwards.
+        # nothing home. Ray reads these when imported, and its processes inherit them when
+        # they start; this process's environment is restored afterwards.
         added = [key for key in _LOCAL_RAY_ENV if key not in os.environ]
         os.environ.update({key: _LOCAL_RAY_ENV[key] for key in added})
         try:
             import ray
 
-            ray.init(
-                num_cpus=workers,
-                include_dashboard=False,
-                object_store_memory=OBJECT_STORE_BYTES,
-                # Cells are the work this command was asked for: its workers run at the
-                # command's own priority (Ray's default lowers them by 15, which starves
-                # them whenever anything else runs; `nice pianist sweep` still applies).
-                _system_config={"worker_niceness": 0},
-                **quiet,
-            )
+            try:
+                return ray, _start_local_ray(ray, workers)
+            except (ImportError, AttributeError, TypeError):
+                # A Ray whose internal classes differ from those of the Rays this was
+                # written for (2.5x-2.6x): its public start, with the two extra processes.
+                ray.init(
+                    num_cpus=workers,
+                    include_dashboard=False,
+                    object_store_memory=OBJECT_STORE_BYTES,
+                    _system_config={"worker_niceness": 0},
+                    **_QUIET,
+                )
+                return ray, ray.shutdown
         finally:
             for key in added:
                 del os.environ[key]
-        return ray
     import ray
 
     try:
-        ray.init(address=address, **quiet)
+        ray.init(address=address, **_QUIET)
     except (ConnectionError, RuntimeError) as exc:
         raise ValueError(
             f"cannot connect to the Ray cluster at {address}: {one_line(exc)[:300]} (a cluster "
             "started with token authentication needs RAY_AUTH_MODE=token and its token here)"
         ) from None
-    return ray
+    return ray, ray.shutdown
+
+
+def _start_local_ray(ray: Any, workers: int) -> Callable[[], None]:
+    """Start a Ray node of our own for this sweep and connect to it; the function that stops
+    exactly that node.
+
+    ``ray.init(num_cpus=...)`` would start, besides what tasks need, the autoscaler's monitor
+    (nothing to scale on one machine; on ``ray.shutdown`` its SIGTERM handler tries to report
+    to the GCS, stopped before it, and outlasts the whole 1 s grace period) and the log
+    monitor (it forwards workers' output to the driver, which ``log_to_driver=False`` turns
+    off): two Python processes starting next to the others on a small machine and 1 s of
+    the stop. ``ray.init`` has no switch for either, so the node is started as ``ray.init``
+    starts it (``ray._private`` classes: ``Node`` with the same ``RayParams``, the same token
+    authentication) without those two, and the driver joins it by its address. Tasks,
+    retries of a dead worker's task and Ray's memory monitor (in the raylet) are unchanged.
+    """
+    from ray._private.node import Node
+    from ray._private.parameter import RayParams
+
+    # What ray.init(logging_level=ERROR) does first: Ray's own messages while starting
+    # (the token authentication notice, ...) stay out of the sweep's output.
+    logging.getLogger("ray").setLevel(logging.ERROR)
+    system_config: dict[str, Any] = {
+        # Cells are the work this command was asked for: its workers run at the command's
+        # own priority (Ray's default lowers them by 15, which starves them whenever
+        # anything else runs; `nice pianist sweep` still applies).
+        "worker_niceness": 0,
+    }
+    _token_auth_as_ray_init(system_config)
+    params = RayParams(
+        num_cpus=workers,
+        object_store_memory=OBJECT_STORE_BYTES,
+        include_dashboard=False,
+        # As ray.init: the API server (started even without a dashboard) takes the first
+        # free port from 8265 on instead of failing when another Ray holds 8265.
+        dashboard_port=None,
+        no_monitor=True,
+        include_log_monitor=False,  # type: ignore[arg-type]  # a bool, annotated str by Ray
+        _system_config=system_config,
+    )
+    # As ray.init: a reaper (or the kernel's parent-death signal) stops the node's
+    # processes if this process dies without stopping them.
+    node = Node(params, head=True, shutdown_at_exit=False, spawn_reaper=True)
+
+    def stop() -> None:
+        try:
+            ray.shutdown()  # the driver leaves; a node it joined by address is not its to stop
+        finally:
+            # What ray.shutdown does to a node it started: the raylet first (it stops its
+            # workers and agents), each process given a grace period before SIGKILL.
+            node.kill_all_processes(check_alive=False, allow_graceful=True)
+
+    try:
+        ray.init(address=node.address, **_QUIET)
+    except BaseException:
+        node.kill_all_processes(check_alive=False, allow_graceful=True)
+        raise
+    return stop
+
+
+def _token_auth_as_ray_init(system_config: dict[str, Any]) -> None:
+    """Token authentication as ``ray.init`` sets it up for a new local Ray: on unless
+    ``RAY_AUTH_MODE`` says otherwise, with the user's token (made if missing). Rays before
+    token authentication have neither function."""
+    try:
+        from ray._private.authentication.authentication_token_setup import (
+            enable_token_auth_by_default,
+            ensure_token_if_auth_enabled,
+        )
+    except ImportError:
+        return
+    enable_token_auth_by_default()
+    ensure_token_if_auth_enabled(system_config, create_token_if_missing=True)
 
 
 def _run_on_ray(
@@ -265,7 +343,7 @@ def _run_on_ray(
     """Run ``cells`` as Ray tasks; the ids of the nodes that ran them (Ray's start and stop
     times go into ``report``)."""
     started = time.perf_counter()
-    ray = _start_ray(workers, address)
+    ray, stop = _start_ray(workers, address)
     report.ray_start_s = time.perf_counter() - started
     nodes: set[str] = set()
     try:
@@ -303,7 +381,7 @@ def _run_on_ray(
             say(f"[{done}/{len(cells)}] {cell.id}: {_outcome(record)}")
     finally:
         stopping = time.perf_counter()
-        ray.shutdown()
+        stop()
         report.ray_stop_s = time.perf_counter() - stopping
     return nodes
 
