@@ -207,11 +207,14 @@ def test_play_sweep_writes_a_row_per_cell_reports_a_failed_cell_and_skips_finish
     cells = expand("play", songs, ["zero", "random"], ["fast"], [0])
     lines: list[str] = []
     ray_processes: set[int] = set()
+    # Processes an earlier test left behind (a Ray stopped by ray.shutdown lets its agents
+    # linger a while) are not this sweep's.
+    before = _descendants(os.getpid())
 
     def message(line: str) -> None:
         lines.append(line)
         if line.startswith("running ") and not ray_processes:  # the local Ray is up
-            ray_processes.update(_descendants(os.getpid()))
+            ray_processes.update(_descendants(os.getpid()) - before)
 
     report = run_sweep(cells, out, workers=2, message=message)
     assert report.ran == 4 and report.skipped == 0 and report.failed == 2
