@@ -29,7 +29,10 @@ class Play:
     """A built-in song name, a MIDI file (.mid) or a PIG fingering file (.txt)."""
     controller: str = "planner"
     """planner; refine (the planner, each action refined by looking ahead with the physics, or
-    e.g. refine:candidates=16,horizon_steps=6,sigma=0.15; ~5x slower than real time); mpc (the
+    e.g. refine:candidates=16,horizon_steps=6,sigma=0.15; ~5x slower than real time); search
+    (the planner, its execution settings chosen per second of music by playing each ahead
+    with the physics; ~5x slower than the planner; search:refine over the refiner, or e.g.
+    search:segment_steps=10,variants=plain+stiff-wrist); mpc (the
     paper's predictive sampling; mpc:tenth, or e.g.
     mpc:paper,num_samples=20,sigma=0.1,horizon_s=0.3,num_knots=3,iterations=8); generalist
     (the policy shipped with the package, for any song, no planner at play time);
@@ -37,7 +40,7 @@ class Play:
     replay:ACTIONS.npy."""
     refine: bool = False
     """Refine the planner's actions by looking ahead with the physics (the same as
-    --controller refine)."""
+    --controller refine; with --controller search, the search runs over the refiner)."""
     fingering: Literal["auto", "file", "robot", "none"] = "auto"
     """auto: keep the song's fingering and estimate what is missing (hands from a MIDI's
     tracks when they say so); file: require the file's own; robot: re-finger every note for
@@ -104,11 +107,14 @@ class Play:
             )
         spec = self.controller
         if self.refine:
-            if spec not in ("planner", "refine") and not spec.startswith("refine:"):
+            if spec == "search" or spec.startswith("search:"):
+                spec = "search:refine," + spec.partition(":")[2]
+            elif spec not in ("planner", "refine") and not spec.startswith("refine:"):
                 raise CliError(f"--refine refines the planner, not --controller {spec}")
-            spec = "refine" if spec == "planner" else spec
+            else:
+                spec = "refine" if spec == "planner" else spec
         song = load_song(self.song, fingering=self.fingering)
-        planner = spec == "planner" or spec.split(":")[0] == "refine"
+        planner = spec == "planner" or spec.split(":")[0] in ("refine", "search")
         if planner and song.fingering_coverage < 1.0:
             missing = sum(n.finger is None for n in song.notes)
             raise CliError(

@@ -134,8 +134,10 @@ def _recorded_env_options(metrics_path: Path) -> dict[str, Any]:
 
 def make_controller(spec: str, **kwargs: Any) -> Controller:
     """A controller from its name: ``planner``, ``refine[:FIELD=VALUE,...]`` (the planner
-    refined by looking ahead, :mod:`pianist.control.refine`), ``mpc[:SPEC]``, ``random``,
-    ``zero`` or ``replay:PATH.npy``."""
+    refined by looking ahead, :mod:`pianist.control.refine`), ``search[:refine,FIELD=VALUE,...]``
+    (the planner or the refiner, its execution settings chosen per segment,
+    :mod:`pianist.control.search`), ``mpc[:SPEC]``, ``random``, ``zero`` or
+    ``replay:PATH.npy``."""
     if spec == "planner":
         from pianist.control.planner import IKPlanner
 
@@ -144,6 +146,12 @@ def make_controller(spec: str, **kwargs: Any) -> Controller:
         from pianist.control.refine import Refiner, parse_refine_options
 
         return Refiner(options=parse_refine_options(spec.partition(":")[2]))
+    if spec == "search" or spec.startswith("search:"):
+        from pianist.control.refine import Refiner
+        from pianist.control.search import SegmentSearch, parse_search_spec
+
+        base, options = parse_search_spec(spec.partition(":")[2])
+        return SegmentSearch(Refiner() if base == "refine" else None, options)
     if spec == "mpc" or spec.startswith("mpc:"):
         from pianist.control.mpc import make_mpc
 
@@ -157,6 +165,7 @@ def make_controller(spec: str, **kwargs: Any) -> Controller:
         return ReplayController(spec.removeprefix("replay:"))
     raise ValueError(
         f"unknown controller {spec!r}; use planner, refine[:FIELD=VALUE,...], "
+        "search[:refine,FIELD=VALUE,...], "
         "mpc[:PRESET,...], random, zero or "
         "replay:ACTIONS.npy"
     )

@@ -34,7 +34,7 @@ import gymnasium as gym
 import numpy as np
 
 from pianist.control.base import BaseController
-from pianist.env.handle import control_handle
+from pianist.env.handle import ControlHandle, control_handle
 
 if TYPE_CHECKING:
     from pianist.control.planner import IKPlanner
@@ -170,6 +170,32 @@ class Refiner(BaseController):
         self._refined += best > 0
         self._seconds += time.perf_counter() - start
         return np.clip(proposal + offsets[best], -1.0, 1.0)
+
+    # What :class:`pianist.control.search.SegmentSearch` needs to run the refiner ahead.
+
+    def memory(self) -> dict[str, Any]:
+        """A copy of what the refiner remembers between steps (its planner's memory, the
+        perturbation chosen last, its random generator and counters)."""
+        return {
+            "planner": self.planner.memory(),
+            "previous": None if self._previous is None else self._previous.copy(),
+            "rng": self.rng.bit_generator.state,
+            "counts": (self._steps, self._refined),
+        }
+
+    def set_memory(self, memory: dict[str, Any]) -> None:
+        """Go back to a :meth:`memory` copy."""
+        self.planner.set_memory(memory["planner"])
+        previous = memory["previous"]
+        self._previous = None if previous is None else previous.copy()
+        self.rng.bit_generator.state = memory["rng"]
+        self._steps, self._refined = memory["counts"]
+
+    def attach(self, handle: ControlHandle) -> None:
+        """Act on another environment of the same song and scene from now on (a fork): its
+        look-ahead fork is restored from that one's state each step, so it stays."""
+        self.handle = handle
+        self.planner.attach(handle)
 
     def _combine(self, offsets: np.ndarray, finger_costs: np.ndarray) -> np.ndarray:
         """(A,) each finger's part of the offset whose look-ahead cost that finger least (the

@@ -1,0 +1,256 @@
+"""Segment search: per second of music, the execution variant that plays it best, verified
+with the physics.
+
+The planner's execution stages have settings that help one passage and cost another (a
+stiffer wrist holds a chord's last finger on its key but lifts the thumb; a harder push
+sounds a weak finger's key and drags a neighbour down), so no single setting is best for a
+whole piece. :class:`SegmentSearch` chooses among a few named settings (:data:`VARIANTS`)
+while it plays. At the start of every segment (``segment_steps`` control steps) it plays each
+variant from the current state on a fork of the environment (the full physics state,
+:meth:`pianist.env.PianoEnv.snapshot` / ``restore``) for the segment and ``overlap_steps``
+beyond it, scores it by the episode's own metric (the sum over steps of 1 - F1 of the
+sounding keys against the due keys), and plays the segment with the variant that lost least.
+The first variant (the plain settings) wins ties and a segment it plays without a loss ends
+the search early, so where nothing does better the base plays as it would alone.
+
+It searches over anything that can be run ahead on a fork and brought back (the
+:class:`Searchable` protocol): the planner, or the refiner
+(:class:`pianist.control.refine.Refiner`), whose per-step look-ahead it then wraps. It costs
+about ``len(variants) * (segment + overlap) / segment`` times the base's simulated steps, plus
+the base's own.
+
+Stages, each a method: :meth:`SegmentSearch._choose` (fork, try each variant, score) at a
+segment's start; :meth:`SegmentSearch.act` (the base with the chosen variant) at every step.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from dataclasses import asdict, dataclass
+from typing import TYPE_CHECKING, Any, Protocol, cast
+
+import gymnasium as gym
+import numpy as np
+
+from pianist.control.base import BaseController
+from pianist.env.handle import ControlHandle, control_handle
+
+if TYPE_CHECKING:
+    from pianist.control.planner import IKPlanner
+    from pianist.music import Song
+
+#: Named execution settings, as :class:`pianist.control.planner.PlannerConfig` overrides.
+#: None changes the plan (hand positions, fingering): a variant can take over mid-piece.
+VARIANTS: dict[str, dict[str, Any]] = {
+    "plain": {},
+    # Feedback on the wrist's flexion too (gain 1): under a chord the keys bend the wrist up
+    # less, so the last finger down is not lifted off its key.
+    "stiff-wrist": {"wrist_feedback": (2.0, 1.0)},
+    # Every finger but the thumb commanded 0.2 rad further down while it presses.
+    "finger-push": {"finger_push_rad": (0.2, 0.2, 0.2, 0.2)},
+    # Harder down for a pressing finger by 1 rad per radian the keys bend the wrist up.
+    "bent-wrist-push": {"bent_wrist_push": 1.0},
+    # Fingers due soon hover 5 mm above their keys instead of 10: earlier strikes.
+    "low-hover": {"hover_height_m": 0.005},
+    # Half the wrist's flexion feedback of stiff-wrist.
+    "half-stiff-wrist": {"wrist_feedback": (2.0, 0.5)},
+    # The thumb commanded 0.5 rad further down while it presses (0.3 plain).
+    "thumb-push": {"thumb_push_rad": 0.5},
+    # A finger presses once within 12 mm (11 on a black key) of its key, not 9 (8).
+    "loose-align": {"align_tolerance_m": 0.012, "black_align_tolerance_m": 0.011},
+}
+
+
+@dataclass(frozen=True)
+class SearchOptions:
+    """How the segment search looks ahead (see the module docstring)."""
+
+    segment_steps: int = 20
+    """Control steps one variant plays before the next choice (1 s at 20 Hz)."""
+    overlap_steps: int = 10
+    """Steps each variant is also scored beyond its segment: a variant that gains at the end
+    of a segment by leaving the hand badly placed for the next one is not chosen for it."""
+    variants: tuple[str, ...] = (
+        "plain",
+        "stiff-wrist",
+        "finger-push",
+        "bent-wrist-push",
+        "low-hover",
+    )
+    """Names from :data:`VARIANTS`; the first is the base's own setting and wins ties."""
+
+    def __post_init__(self) -> None:
+        if self.segment_steps < 1 or self.overlap_steps < 0:
+            raise ValueError(
+                "search needs segment_steps >= 1 and overlap_steps >= 0, not "
+                f"{self.segment_steps}, {self.overlap_steps}"
+            )
+        unknown = [name for name in self.variants if name not in VARIANTS]
+        if unknown or not self.variants:
+            raise ValueError(
+                f"unknown search variants {unknown or '(none given)'}; use {', '.join(VARIANTS)}"
+            )
+
+
+class Searchable(Protocol):
+    """A controller the search can run ahead on a fork and bring back: the planner itself,
+    or a controller with the planner as its ``planner`` (whose ``config`` the variants
+    replace)."""
+
+    def reset(self, env: gym.Env, seed: int | None = None) -> None: ...
+
+    def memory(self) -> Any:
+        """A copy of what the controller remembers between steps."""
+        ...
+
+    def set_memory(self, memory: Any) -> None:
+        """Go back to a :meth:`memory` copy."""
+        ...
+
+    def attach(self, handle: ControlHandle) -> None:
+        """Act on another environment of the same song and scene from now on."""
+        ...
+
+    def act(self, observation: Any = None) -> np.ndarray: ...
+
+
+def parse_search_spec(spec: str) -> tuple[str, SearchOptions]:
+    """The base (``planner`` or ``refine``) and options from a controller spec's part after
+    ``search:``, e.g. ``"refine,segment_steps=10,variants=plain+stiff-wrist"`` (empty: the
+    planner with the default options).
+
+    Raises:
+        ValueError: an unknown base, field or variant, or a value that is not a whole number.
+    """
+    base, values = "planner", dict[str, Any]()
+    for item in filter(None, (part.strip() for part in spec.split(","))):
+        name, sep, text = item.partition("=")
+        if not sep:
+            if name not in ("planner", "refine"):
+                raise ValueError(f"search runs over planner or refine, not {name!r}")
+            base = name
+        elif name == "variants":
+            values[name] = tuple(filter(None, text.split("+")))
+        elif name in ("segment_steps", "overlap_steps"):
+            try:
+                values[name] = int(text)
+            except ValueError:
+                raise ValueError(
+                    f"search option {name} needs a whole number, not {text!r}"
+                ) from None
+        else:
+            raise ValueError(
+                f"unknown search option {name!r}; use segment_steps, overlap_steps or variants"
+            )
+    return base, SearchOptions(**values)
+
+
+def _planner(base: Searchable) -> IKPlanner:
+    """The planner of ``base`` (the base itself when it is one)."""
+    return cast("IKPlanner", getattr(base, "planner", base))
+
+
+def step_f1_loss(due: np.ndarray, active: np.ndarray) -> float:
+    """1 - F1 of one step's sounding keys ``active`` (88,) bool against the ``due`` keys (88,)
+    bool, with the metric's convention (nothing due and nothing sounding: F1 1)."""
+    hits = int(np.count_nonzero(due & active))
+    n_due, n_active = int(np.count_nonzero(due)), int(np.count_nonzero(active))
+    if n_due == 0 and n_active == 0:
+        return 0.0
+    if hits == 0:
+        return 1.0
+    return 1.0 - 2.0 * hits / (n_due + n_active)
+
+
+class SegmentSearch(BaseController):
+    """A searchable controller (the planner by default), its execution setting chosen per
+    segment by playing each variant ahead with the physics."""
+
+    def __init__(self, base: Searchable | None = None, options: SearchOptions | None = None):
+        if base is None:
+            from pianist.control.planner import IKPlanner
+
+            base = IKPlanner()
+        self.base = base
+        self.options = options or SearchOptions()
+
+    def env_options(self, song: Song | None = None) -> dict[str, Any]:
+        return _planner(self.base).env_options(song)
+
+    def reset(self, env: gym.Env, seed: int | None = None) -> None:
+        self.base.reset(env, seed)
+        self.handle = control_handle(env)
+        self.ahead = self.handle.fork()
+        self.ahead_handle = control_handle(self.ahead)
+        self.planner = _planner(self.base)
+        own = self.planner.config
+        self.configs = [dataclasses.replace(own, **VARIANTS[n]) for n in self.options.variants]
+        self.chosen = np.zeros(self.handle.goal.num_frames, dtype=np.int8)
+        # (T,) 1 - F1 of each step as the chosen variant's look-ahead played it (the steps
+        # past a segment are overwritten by the next segment's choice).
+        self.predicted_loss = np.zeros(self.handle.goal.num_frames)
+        self._current = 0
+        self._segments = 0
+        self._seconds = 0.0
+
+    def act(self, observation: Any = None) -> np.ndarray:
+        t = self.handle.step_index
+        if t % self.options.segment_steps == 0 and t < self.handle.goal.num_frames:
+            start = time.perf_counter()
+            self._current = self._choose(t)
+            self._segments += 1
+            self._seconds += time.perf_counter() - start
+        if t < self.chosen.size:
+            self.chosen[t] = self._current
+        return self.base.act(observation)
+
+    def _choose(self, t: int) -> int:
+        """Index of the variant to play the segment from step ``t`` with: each variant is
+        played on the fork from the current state; the base is left as it was, with the
+        chosen variant's settings."""
+        o = self.options
+        state = self.handle.snapshot()
+        memory = self.base.memory()
+        goal = self.handle.goal.keys
+        end = min(t + o.segment_steps + o.overlap_steps, goal.shape[0])
+        losses: list[float] = []
+        per_step = np.zeros((len(self.configs), end - t))
+        for v, config in enumerate(self.configs):
+            self.ahead.restore(state)
+            self.base.attach(self.ahead_handle)
+            self.base.set_memory(memory)
+            self.planner.config = config
+            for j, step in enumerate(range(t, end)):
+                _, _, terminated, _, info = self.ahead.step(self.base.act(None))
+                per_step[v, j] = step_f1_loss(goal[step], info["active_keys"])
+                if terminated:
+                    per_step[v, j + 1 :] = 1.0  # the steps it did not play lose everything
+                    break
+            losses.append(float(per_step[v].sum()))
+            if losses[-1] == 0.0:
+                break  # nothing can do better, and the first of equals is chosen anyway
+        best = int(np.argmin(losses))
+        self.predicted_loss[t:end] = per_step[best]
+        self.base.attach(self.handle)
+        self.base.set_memory(memory)
+        self.planner.config = self.configs[best]
+        return best
+
+    def stats(self) -> dict[str, float]:
+        played = self.chosen[: self.handle.step_index]
+        out = {"search_seconds_per_segment": self._seconds / max(self._segments, 1)}
+        for i, name in enumerate(self.options.variants):
+            out[f"search_share_{name}"] = float(np.mean(played == i)) if played.size else 0.0
+        base_stats = getattr(self.base, "stats", None)
+        return {**(base_stats() if base_stats else {}), **out}
+
+    def plan_arrays(self) -> dict[str, np.ndarray]:
+        """The base's plan, and ``search_variant`` (T,) int8: the index (into
+        ``SearchOptions.variants``) of the variant each step was played with."""
+        arrays = getattr(self.base, "plan_arrays", None)
+        return {**(arrays() if arrays else {}), "search_variant": self.chosen.copy()}
+
+    def options_dict(self) -> dict[str, Any]:
+        base_options = getattr(self.base, "options_dict", None)
+        return {**(base_options() if base_options else {}), "search": asdict(self.options)}
