@@ -1,5 +1,7 @@
 """The segment search: per segment, the execution variant that plays it best on a fork."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -82,7 +84,7 @@ def test_each_segment_plays_as_its_look_ahead_predicted():
     # restored from a snapshot reproduces the episode exactly.
     np.testing.assert_array_equal(played, search.predicted_loss[: played.size])
     arrays = search.plan_arrays()
-    assert arrays["search_variant"].shape == (goal.shape[0],)
+    assert arrays["search_variant"].shape == (goal.shape[0], 2)  # per step, per hand
     assert "planned_fingers" in arrays  # the planner's own plan is kept
     shares = [result.metrics[f"search_share_{name}"] for name in search.options.variants]
     assert sum(shares) == pytest.approx(1.0)
@@ -116,3 +118,33 @@ def test_cli_plays_with_search_and_refuses_a_bad_spec(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert err[-1].startswith("pianist: error:") and "segment_steps" in err[-1]
     assert not (tmp_path / "bad").exists()
+
+
+def test_one_hands_settings_change_only_that_hands_commands():
+    from pianist.control.search import VARIANTS
+    from pianist.eval.session import make_env
+
+    song = window(load_song("c-major-scale-both"), 0.0, 2.0)
+    plain, pushed = IKPlanner(), IKPlanner()
+    envs = []
+    for planner in (plain, pushed):
+        env = make_env(song, planner, physics="fast")
+        env.reset(seed=0)
+        planner.reset(env, seed=0)
+        envs.append(env)
+    left = [h.side for h in pushed.hands].index("left")
+    settings = [None, None]
+    settings[left] = dataclasses.replace(pushed.config, **VARIANTS["finger-push"])
+    pushed.set_hand_settings(settings)
+    left_dims = pushed.hands[left].finger_actuators
+    for _ in range(40):
+        a, b = plain.act(None), pushed.act(None)
+        if not np.array_equal(a, b):
+            break
+        for env, action in zip(envs, (a, b), strict=True):
+            env.step(action)
+    else:
+        pytest.fail("the left hand's finger push never changed its commands")
+    # The first step where they differ: only the left hand's fingers differ.
+    differ = np.flatnonzero(a != b)
+    assert set(differ.tolist()) <= set(left_dims.tolist())

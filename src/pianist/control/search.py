@@ -38,6 +38,7 @@ from pianist.env.handle import ControlHandle, control_handle
 
 if TYPE_CHECKING:
     from pianist.control.planner import IKPlanner
+    from pianist.env.piano_env import EnvState
     from pianist.music import Song
 
 #: Named execution settings, as :class:`pianist.control.planner.PlannerConfig` overrides.
@@ -164,8 +165,8 @@ def step_f1_loss(due: np.ndarray, active: np.ndarray) -> float:
 
 
 class SegmentSearch(BaseController):
-    """A searchable controller (the planner by default), its execution setting chosen per
-    segment by playing each variant ahead with the physics."""
+    """A searchable controller (the planner by default), its execution settings chosen per
+    segment and per hand by playing each candidate ahead with the physics."""
 
     def __init__(self, base: Searchable | None = None, options: SearchOptions | None = None):
         if base is None:
@@ -186,11 +187,21 @@ class SegmentSearch(BaseController):
         self.planner = _planner(self.base)
         own = self.planner.config
         self.configs = [dataclasses.replace(own, **VARIANTS[n]) for n in self.options.variants]
-        self.chosen = np.zeros(self.handle.goal.num_frames, dtype=np.int8)
-        # (T,) 1 - F1 of each step as the chosen variant's look-ahead played it (the steps
+        hands = self.planner.hands
+        # Whose a key is: the hand of its planned finger (0-9 -> index into hands), and
+        # each fingertip's hand (for a wrong key, the hand of the nearest fingertip).
+        self.finger_hand = np.zeros(2 * 5, dtype=int)
+        for h, hand in enumerate(hands):
+            self.finger_hand[hand.finger_offset : hand.finger_offset + 5] = h
+        self.tip_sites = np.concatenate([hand.sites for hand in hands])
+        self.tip_hand = np.repeat(np.arange(len(hands)), 5)
+        T = self.handle.goal.num_frames
+        # (T, hands) the variant (index into options.variants) each hand played each step.
+        self.chosen = np.zeros((T, len(hands)), dtype=np.int8)
+        # (T,) 1 - F1 of each step as the chosen candidate's look-ahead played it (the steps
         # past a segment are overwritten by the next segment's choice).
-        self.predicted_loss = np.zeros(self.handle.goal.num_frames)
-        self._current = 0
+        self.predicted_loss = np.zeros(T)
+        self._current: tuple[int, ...] = (0,) * len(hands)
         self._segments = 0
         self._seconds = 0.0
 
@@ -201,41 +212,79 @@ class SegmentSearch(BaseController):
             self._current = self._choose(t)
             self._segments += 1
             self._seconds += time.perf_counter() - start
-        if t < self.chosen.size:
+        if t < self.chosen.shape[0]:
             self.chosen[t] = self._current
         return self.base.act(observation)
 
-    def _choose(self, t: int) -> int:
-        """Index of the variant to play the segment from step ``t`` with: each variant is
-        played on the fork from the current state; the base is left as it was, with the
-        chosen variant's settings."""
+    def _choose(self, t: int) -> tuple[int, ...]:
+        """The variant of each hand for the segment from step ``t``: every variant is played
+        on the fork by both hands from the current state, then each hand's best of them
+        together (when they differ); the base is left as it was, with the chosen settings."""
         o = self.options
         state = self.handle.snapshot()
         memory = self.base.memory()
-        goal = self.handle.goal.keys
-        end = min(t + o.segment_steps + o.overlap_steps, goal.shape[0])
-        losses: list[float] = []
-        per_step = np.zeros((len(self.configs), end - t))
-        for v, config in enumerate(self.configs):
-            self.ahead.restore(state)
-            self.base.attach(self.ahead_handle)
-            self.base.set_memory(memory)
-            self.planner.config = config
-            for j, step in enumerate(range(t, end)):
-                _, _, terminated, _, info = self.ahead.step(self.base.act(None))
-                per_step[v, j] = step_f1_loss(goal[step], info["active_keys"])
-                if terminated:
-                    per_step[v, j + 1 :] = 1.0  # the steps it did not play lose everything
-                    break
-            losses.append(float(per_step[v].sum()))
-            if losses[-1] == 0.0:
+        end = min(t + o.segment_steps + o.overlap_steps, self.handle.goal.num_frames)
+        n_hands = self.chosen.shape[1]
+        tried: list[tuple[int, ...]] = []
+        losses: list[np.ndarray] = []  # per candidate, (steps,) 1 - F1
+        hand_costs: list[np.ndarray] = []  # per candidate, (hands,) missed + wrong keys
+        for variant in range(len(self.configs)):
+            candidate = (variant,) * n_hands
+            loss, cost = self._look_ahead(candidate, t, end, state, memory)
+            tried.append(candidate)
+            losses.append(loss)
+            hand_costs.append(cost)
+            if loss.sum() == 0.0:
                 break  # nothing can do better, and the first of equals is chosen anyway
-        best = int(np.argmin(losses))
-        self.predicted_loss[t:end] = per_step[best]
+        if len(tried) == len(self.configs) and n_hands > 1:
+            costs = np.stack(hand_costs)  # (candidates, hands); the first of equals per hand
+            combined = tuple(tried[int(np.argmin(costs[:, h]))][h] for h in range(n_hands))
+            if combined not in tried:
+                tried.append(combined)
+                losses.append(self._look_ahead(combined, t, end, state, memory)[0])
+        best = int(np.argmin([loss.sum() for loss in losses]))
+        self.predicted_loss[t:end] = losses[best]
         self.base.attach(self.handle)
         self.base.set_memory(memory)
-        self.planner.config = self.configs[best]
-        return best
+        self._use(tried[best])
+        return tried[best]
+
+    def _look_ahead(
+        self, candidate: tuple[int, ...], t: int, end: int, state: EnvState, memory: Any
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Play steps ``t`` to ``end`` on the fork from ``state`` with each hand's variant in
+        ``candidate``: (steps,) 1 - F1 of each step, and (hands,) the keys each hand is
+        answerable for (a due key not sounding: its planned finger's hand; a key sounding
+        that is not due: the hand of the fingertip nearest it across the keys)."""
+        self.ahead.restore(state)
+        self.base.attach(self.ahead_handle)
+        self.base.set_memory(memory)
+        self._use(candidate)
+        goal = self.handle.goal.keys
+        fingers = self.planner.fingers
+        key_y = self.planner.key_point[:, 1]
+        site_xpos = self.ahead_handle.data.site_xpos
+        loss = np.zeros(end - t)
+        cost = np.zeros(self.chosen.shape[1])
+        for j, step in enumerate(range(t, end)):
+            _, _, terminated, _, info = self.ahead.step(self.base.act(None))
+            due, active = goal[step], info["active_keys"]
+            loss[j] = step_f1_loss(due, active)
+            missed = np.flatnonzero(due & ~active)
+            owners = fingers[step, missed]
+            np.add.at(cost, self.finger_hand[owners[owners >= 0]], 1.0)
+            wrong = np.flatnonzero(active & ~due)
+            if wrong.size:
+                tip_y = site_xpos[self.tip_sites, 1]
+                nearest = np.argmin(np.abs(key_y[wrong, None] - tip_y[None, :]), axis=1)
+                np.add.at(cost, self.tip_hand[nearest], 1.0)
+            if terminated:
+                loss[j + 1 :] = 1.0  # the steps it did not play lose everything
+                break
+        return loss, cost
+
+    def _use(self, candidate: tuple[int, ...]) -> None:
+        self.planner.set_hand_settings([self.configs[v] for v in candidate])
 
     def stats(self) -> dict[str, float]:
         played = self.chosen[: self.handle.step_index]
@@ -246,8 +295,9 @@ class SegmentSearch(BaseController):
         return {**(base_stats() if base_stats else {}), **out}
 
     def plan_arrays(self) -> dict[str, np.ndarray]:
-        """The base's plan, and ``search_variant`` (T,) int8: the index (into
-        ``SearchOptions.variants``) of the variant each step was played with."""
+        """The base's plan, and ``search_variant`` (T, hands) int8: the index (into
+        ``SearchOptions.variants``) of the variant each hand (in the planner's order) played
+        each step with."""
         arrays = getattr(self.base, "plan_arrays", None)
         return {**(arrays() if arrays else {}), "search_variant": self.chosen.copy()}
 

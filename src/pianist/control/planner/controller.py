@@ -307,6 +307,13 @@ class IKPlanner(BaseController):
         """Act on another environment of the same song and scene from now on (a fork)."""
         self.handle = handle
 
+    def set_hand_settings(self, settings: list[PlannerConfig | None]) -> None:
+        """Act with other execution settings per hand (in the order of ``hands``; None: the
+        planner's ``config``). Only the fields read while acting take effect: the plan and
+        the posture samples were made at reset."""
+        for hand, hand_cfg in zip(self.hands, settings, strict=True):
+            hand.settings = hand_cfg
+
     def finger_action_dims(self) -> np.ndarray:
         """(F,) the action dimensions of every finger joint (not the forearms or wrists)."""
         return np.concatenate([hand.finger_actuators for hand in self.hands])
@@ -319,17 +326,18 @@ class IKPlanner(BaseController):
         scratch.qpos[:] = handle.data.qpos
         press_frame = min(t + cfg.press_lead_frames, T - 1)
         hover_end = min(T, press_frame + 1 + round(cfg.hover_lead_s / self.dt))
-        for hand in self.hands:
-            hand.command_forearm(ctrl, handle.data, t, cfg)
-            hand.set_wrist(scratch, ctrl, cfg)
+        settings = [hand.settings or cfg for hand in self.hands]
+        for hand, hand_cfg in zip(self.hands, settings, strict=True):
+            hand.command_forearm(ctrl, handle.data, t, hand_cfg)
+            hand.set_wrist(scratch, ctrl, hand_cfg)
             # The fingers are solved for where the moving forearm will be a little later:
             # their servos lag behind their commands by about a control step.
             scratch.qpos[hand.tx_qpos] += cfg.forearm_lead_s * handle.data.qvel[hand.tx_dof]
         mujoco.mj_kinematics(m, scratch)
-        for hand in self.hands:
-            targets, active = hand.fingertip_targets(self, t, hover_end)
+        for hand, hand_cfg in zip(self.hands, settings, strict=True):
+            targets, active = hand.fingertip_targets(self, t, hover_end, hand_cfg)
             self.finger_states[t, hand.finger_offset : hand.finger_offset + 5] = hand.state
-            hand.solve(m, scratch, targets, active, cfg)
+            hand.solve(m, scratch, targets, active, hand_cfg)
             ctrl[hand.finger_actuators] = hand.finger_controls(scratch)
         action = np.empty(m.nu + 1)
         action[:-1] = handle.ctrl_to_action(ctrl)

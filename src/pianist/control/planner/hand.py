@@ -11,7 +11,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from pianist.control.planner.config import FINGER_PREFIXES, FINGERS_PER_HAND
+from pianist.control.planner.config import FINGER_PREFIXES, FINGERS_PER_HAND, PlannerConfig
 from pianist.control.planner.forearm import ForearmPlan
 from pianist.control.planner.ik import FingerIK
 from pianist.control.planner.postures import Finger, HandPostures, _actuated_qpos
@@ -59,3 +59,6 @@ class Hand(HandPostures, ForearmPlan, FingerTargets, FingerIK):
         self.last_tips = np.zeros((FINGERS_PER_HAND, 3))
         self.last_key = np.full(FINGERS_PER_HAND, -1)  # key each finger pressed last, or -1
         self.unsounded = np.zeros(FINGERS_PER_HAND, dtype=int)  # see FingerTargets
+        # Execution settings of this hand alone (IKPlanner.set_hand_settings); None: the
+        # planner's config.
+        self.settings: PlannerConfig | None = None

@@ -16,7 +16,7 @@ from enum import IntEnum
 
 import numpy as np
 
-from pianist.control.planner.config import FINGERS_PER_HAND, PlannerState
+from pianist.control.planner.config import FINGERS_PER_HAND, PlannerConfig, PlannerState
 from pianist.sim import constants as C
 
 
@@ -64,16 +64,18 @@ class FingerTargets:
     posture)."""
 
     def fingertip_targets(
-        self, planner: PlannerState, now: int, hover_end: int
+        self, planner: PlannerState, now: int, hover_end: int, cfg: PlannerConfig | None = None
     ) -> tuple[np.ndarray, np.ndarray]:
         """(5, 3) fingertip targets relative to the forearm, and which fingers have one.
 
         Keys scored at the end of this step (frame ``now``) are held down to its end; keys
         due at the next frame are pressed already (the servos lag about a frame), except a key
         that is still down and must sound again: it is let up for this step first. Fingers due
-        later hover over their keys; the rest take their lifted posture.
+        later hover over their keys; the rest take their lifted posture. ``cfg``: this hand's
+        settings (default: the planner's).
         """
-        cfg, goal = planner.config, planner.goal
+        cfg = cfg or planner.config
+        goal = planner.goal
         radius = C.FINGERTIP_CAPSULE_RADIUS_M
         origin = planner.scratch.xpos[self.forearm_body]
         real_tips = planner.handle.data.site_xpos[self.sites]
@@ -86,7 +88,7 @@ class FingerTargets:
         if self.free[now] and cfg.hover_in_shift:
             # The hand is moving: the fingers of the note it moves for travel with it just
             # above their keys, the others stay lifted.
-            self._hover_over(planner, self.shift_to[now], targets, active)
+            self._hover_over(planner, self.shift_to[now], targets, active, cfg)
             # A finger still on the keys with far to go comes up first (``jump_lift_m``).
             low = real_tips[:, 2] < C.WHITE_KEY_HEIGHT_M + radius + cfg.jump_low_m
             far = active & low & (np.abs(targets[:, 1] - real_tips[:, 1]) > cfg.jump_lift_m)
@@ -104,7 +106,7 @@ class FingerTargets:
                 finger = planner.fingers[frame, key] - self.finger_offset
                 if not 0 <= finger < FINGERS_PER_HAND or active[finger]:
                     continue
-                point = self._press_point(planner, int(key), finger)
+                point = self._press_point(planner, int(key), finger, cfg)
                 top = planner.key_top_z[key] + radius
                 targets[finger] = point
                 active[finger] = True
@@ -171,7 +173,7 @@ class FingerTargets:
         for t in range(lead + 1, hover_end if not self.free[now] else lead + 1):
             if self.free[t] and cfg.hover_stops_at_shift:
                 break  # keys past a shift are out of reach from here
-            self._hover_over(planner, t, targets, active)
+            self._hover_over(planner, t, targets, active, cfg)
         self.state[active & (self.state == FingerState.LIFTED)] = FingerState.HOVERING
         self.active = active.copy()
         return targets - origin, active
@@ -200,21 +202,28 @@ class FingerTargets:
         return self.pressing & (self.unsounded >= cfg.unsounded_steps)  # see ik.py
 
     def _hover_over(
-        self, planner: PlannerState, frame: int, targets: np.ndarray, active: np.ndarray
+        self,
+        planner: PlannerState,
+        frame: int,
+        targets: np.ndarray,
+        active: np.ndarray,
+        cfg: PlannerConfig,
     ) -> None:
         """Send each finger without a target yet to hover over its key due at ``frame``
         (world frame, in place)."""
         goal = planner.goal
-        height = C.FINGERTIP_CAPSULE_RADIUS_M + planner.config.hover_height_m
+        height = C.FINGERTIP_CAPSULE_RADIUS_M + cfg.hover_height_m
         for key in np.flatnonzero(goal.keys[frame] & ~self.skip[frame]):
             finger = planner.fingers[frame, key] - self.finger_offset
             if 0 <= finger < FINGERS_PER_HAND and not active[finger]:
-                targets[finger] = self._press_point(planner, int(key), finger)
+                targets[finger] = self._press_point(planner, int(key), finger, cfg)
                 targets[finger, 2] = planner.key_top_z[key] + height
                 active[finger] = True
 
-    def _press_point(self, planner: PlannerState, key: int, finger: int) -> np.ndarray:
+    def _press_point(
+        self, planner: PlannerState, key: int, finger: int, cfg: PlannerConfig | None = None
+    ) -> np.ndarray:
         point = planner.key_point[key].copy()
         if finger == 0 and not C.BLACK_KEY_MASK[key]:
-            point[0] = planner.config.thumb_white_press_x_m
+            point[0] = (cfg or planner.config).thumb_white_press_x_m
         return point
