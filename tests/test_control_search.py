@@ -100,8 +100,9 @@ def test_searching_plays_real_passages_no_worse_than_the_planner():
         alone = play(song, IKPlanner(), physics="fast", seed=0).metrics["f1"]
         searched = play(song, SegmentSearch(), physics="fast", seed=0).metrics["f1"]
         gains.append(searched - alone)
-    assert min(gains) >= -0.01
-    assert sum(gains) > 0.01
+    # Measured here: +0.038 and +0.011.
+    assert min(gains) >= -0.005
+    assert sum(gains) > 0.025
 
 
 def test_cli_plays_with_search_and_refuses_a_bad_spec(tmp_path, capsys):

@@ -3,8 +3,8 @@ command line, sweeps and datasets share.
 
 ``policy:RUN_DIR`` (a trained agent), ``bc:DIR`` (a behaviour-cloning policy), ``generalist``
 (the behaviour-cloning policy shipped with the package), or anything
-:func:`pianist.control.make_controller` takes (``planner``, ``refine[:...]``, ``mpc[:...]``,
-``random``, ``zero``, ``replay:ACTIONS.npy``).
+:func:`pianist.control.make_controller` takes (``planner``, ``refine[:...]``, ``search[:...]``,
+``mpc[:...]``, ``random``, ``zero``, ``replay:ACTIONS.npy``).
 """
 
 from __future__ import annotations

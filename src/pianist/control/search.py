@@ -5,22 +5,26 @@ The planner's execution stages have settings that help one passage and cost anot
 stiffer wrist holds a chord's last finger on its key but lifts the thumb; a harder push
 sounds a weak finger's key and drags a neighbour down), so no single setting is best for a
 whole piece. :class:`SegmentSearch` chooses among a few named settings (:data:`VARIANTS`)
-while it plays. At the start of every segment (``segment_steps`` control steps) it plays each
-variant from the current state on a fork of the environment (the full physics state,
-:meth:`pianist.env.PianoEnv.snapshot` / ``restore``) for the segment and ``overlap_steps``
-beyond it, scores it by the episode's own metric (the sum over steps of 1 - F1 of the
-sounding keys against the due keys), and plays the segment with the variant that lost least.
-The first variant (the plain settings) wins ties and a segment it plays without a loss ends
-the search early, so where nothing does better the base plays as it would alone.
+while it plays, for each hand apart. At the start of every segment (``segment_steps`` control
+steps) it plays each variant, with both hands, from the current state on a fork of the
+environment (the full physics state, :meth:`pianist.env.PianoEnv.snapshot` / ``restore``)
+for the segment and ``overlap_steps`` beyond it, and scores it by the episode's own metric
+(the sum over steps of 1 - F1 of the sounding keys against the due keys). Each look-ahead's
+misses are also split between the hands (a due key not sounding: its planned finger's hand; a
+key sounding that is not due: the hand of the nearest fingertip), and each hand's best variant
+is looked ahead together as one more candidate. The segment is played with the candidate that
+lost least. The plain settings come first and win ties, and a plain look-ahead without a loss
+ends the search early, so where nothing does better the base plays as it would alone.
 
 It searches over anything that can be run ahead on a fork and brought back (the
 :class:`Searchable` protocol): the planner, or the refiner
 (:class:`pianist.control.refine.Refiner`), whose per-step look-ahead it then wraps. It costs
-about ``len(variants) * (segment + overlap) / segment`` times the base's simulated steps, plus
-the base's own.
+about ``(len(variants) + 1) * (segment + overlap) / segment`` times the base's simulated
+steps, plus the base's own.
 
-Stages, each a method: :meth:`SegmentSearch._choose` (fork, try each variant, score) at a
-segment's start; :meth:`SegmentSearch.act` (the base with the chosen variant) at every step.
+Stages, each a method: :meth:`SegmentSearch._choose` (try each candidate with
+:meth:`SegmentSearch._look_ahead`, score) at a segment's start; :meth:`SegmentSearch.act`
+(the base with the chosen settings) at every step.
 """
 
 from __future__ import annotations
