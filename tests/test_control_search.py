@@ -1,6 +1,7 @@
 """The segment search: per segment, the execution variant that plays it best on a fork."""
 
 import dataclasses
+import json
 
 import numpy as np
 import pytest
@@ -112,7 +113,13 @@ def test_cli_plays_with_search_and_refuses_a_bad_spec(tmp_path, capsys):
     code = main(["play", str(song), "--controller", "search", "--physics", "fast", "--out",
                  str(out), "--no-audio"])  # fmt: skip
     assert code == 0
-    assert (out / "metrics.json").is_file()
+    assert json.loads((out / "metrics.json").read_text())["controller_options"]["search"]
+    # --refine with the search: the search runs over the refiner.
+    code = main(["play", str(song), "--controller", "search:variants=plain", "--refine",
+                 "--physics", "fast", "--out", str(out), "--no-audio"])  # fmt: skip
+    assert code == 0
+    options = json.loads((out / "metrics.json").read_text())["controller_options"]
+    assert options["refine"]["candidates"] == 8 and options["search"]["variants"] == ["plain"]
     code = main(["play", "twinkle-twinkle", "--controller", "search:segment_steps=0",
                  "--out", str(tmp_path / "bad"), "--no-audio"])  # fmt: skip
     assert code == 1
