@@ -200,7 +200,9 @@ def test_fitting_learns_the_experts_modes_and_training_runs_end_to_end():
     expert = data.y[:, 2:].reshape(-1, FINGERS, NUM_MODES).argmax(2)
     assert (modes == expert).mean() > 0.95
     # One DAgger round, the policy then plays the song it learnt.
-    trained = train([SONG], rounds=1, config=FitConfig(steps=400, round_steps=200), workers=1)
+    # 400 Adam steps fit the recorded modes (above) but play the scale at F1 0.25; 1500 play
+    # it at 0.82 (measured).
+    trained = train([SONG], rounds=1, config=FitConfig(steps=1500, round_steps=500), workers=1)
     assert [h.get("round") for h in trained.info["history"]] == [None, 1]
     f1 = play(SONG, FingertipController(trained), physics="fast", seed=0).metrics["f1"]
     assert f1 > 0.6, f1
