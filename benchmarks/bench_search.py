@@ -8,8 +8,9 @@ controller and preset (seed 0), in the environment the CLI builds for the contro
 episodes run in ``--workers`` processes (one per core: the real-time factors are then those
 of one core each, with the other core busy).
 
-Run: ``python benchmarks/bench_search.py --controllers planner,search [--suite open-etude-12
-| --songs a,b] [--presets fast,faithful] [--workers 2] [--json out.json]``.
+Run: ``python benchmarks/bench_search.py --controllers planner search [--suite open-etude-12
+| --songs a,b] [--presets fast,faithful] [--workers 2] [--json out.json]`` (specs are
+space-separated: a spec may hold commas, e.g. ``search:segment_steps=10,overlap_steps=5``).
 """
 
 from __future__ import annotations
@@ -40,7 +41,9 @@ def _episode(job: tuple[str, str, str]) -> tuple[str, str, str, dict]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--controllers", default="planner,search")
+    parser.add_argument(
+        "--controllers", nargs="+", default=["planner", "search"], help="specs, space-separated"
+    )
     parser.add_argument("--songs", default=None)
     parser.add_argument("--suite", default="open-etude-12")
     parser.add_argument("--presets", default="fast")
@@ -48,7 +51,7 @@ def main() -> None:
     parser.add_argument("--json", default=None, help="also write the results to this file")
     args = parser.parse_args()
     songs = args.songs.split(",") if args.songs else list_songs(args.suite)
-    specs = args.controllers.split(",")
+    specs = args.controllers
     presets = args.presets.split(",")
     jobs = [(song, spec, preset) for preset in presets for song in songs for spec in specs]
     results: dict = {"controllers": specs, "presets": presets, "songs": {}, "mean": {}}

@@ -30,7 +30,7 @@ class Play:
     controller: str = "planner"
     """planner; refine (the planner, each action refined by looking ahead with the physics, or
     e.g. refine:candidates=16,horizon_steps=6,sigma=0.15; ~5x slower than real time); search
-    (the planner, its execution settings chosen per second of music by playing each ahead
+    (the planner, its execution settings chosen per half second of music by playing each ahead
     with the physics; ~2-3x real time; search:refine over the refiner, ~1/10; or e.g.
     search:segment_steps=10,variants=plain+stiff-wrist); mpc (the
     paper's predictive sampling; mpc:tenth, or e.g.

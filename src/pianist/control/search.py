@@ -1,5 +1,5 @@
-"""Segment search: per second of music, the execution variant that plays it best, verified
-with the physics.
+"""Segment search: per half second of music, the execution variant that plays it best,
+verified with the physics.
 
 The planner's execution stages have settings that help one passage and cost another (a
 stiffer wrist holds a chord's last finger on its key but lifts the thumb; a harder push
@@ -71,9 +71,9 @@ VARIANTS: dict[str, dict[str, Any]] = {
 class SearchOptions:
     """How the segment search looks ahead (see the module docstring)."""
 
-    segment_steps: int = 20
-    """Control steps one variant plays before the next choice (1 s at 20 Hz)."""
-    overlap_steps: int = 10
+    segment_steps: int = 10
+    """Control steps one variant plays before the next choice (0.5 s at 20 Hz)."""
+    overlap_steps: int = 5
     """Steps each variant is also scored beyond its segment: a variant that gains at the end
     of a segment by leaving the hand badly placed for the next one is not chosen for it."""
     variants: tuple[str, ...] = (
