@@ -38,6 +38,7 @@ import gymnasium as gym
 import numpy as np
 
 from pianist.control.base import BaseController
+from pianist.control.planner.config import FINGERS_PER_HAND
 from pianist.env.handle import ControlHandle, control_handle
 
 if TYPE_CHECKING:
@@ -194,11 +195,11 @@ class SegmentSearch(BaseController):
         hands = self.planner.hands
         # Whose a key is: the hand of its planned finger (0-9 -> index into hands), and
         # each fingertip's hand (for a wrong key, the hand of the nearest fingertip).
-        self.finger_hand = np.zeros(2 * 5, dtype=int)
+        self.finger_hand = np.zeros(2 * FINGERS_PER_HAND, dtype=int)
         for h, hand in enumerate(hands):
-            self.finger_hand[hand.finger_offset : hand.finger_offset + 5] = h
+            self.finger_hand[hand.finger_offset : hand.finger_offset + FINGERS_PER_HAND] = h
         self.tip_sites = np.concatenate([hand.sites for hand in hands])
-        self.tip_hand = np.repeat(np.arange(len(hands)), 5)
+        self.tip_hand = np.repeat(np.arange(len(hands)), FINGERS_PER_HAND)
         T = self.handle.goal.num_frames
         # (T, hands) the variant (index into options.variants) each hand played each step.
         self.chosen = np.zeros((T, len(hands)), dtype=np.int8)
