@@ -20,7 +20,7 @@ distilled from its RL specialists, <= ~0.15 zero-shot on etude-12.
 Run:
     python benchmarks/bench_generalist.py eval [--policy DIR] [--suites open-etude-12,debug]
     python benchmarks/bench_generalist.py fingertip-scaling --corpus corpus/chorales-all \
-        [--sizes 1,8,32,120] [--rounds 1]
+        [--sizes 1,8,32,120] [--rounds 1] [--fingering plan|song]
     python benchmarks/bench_generalist.py scaling --dataset pianist/chorales-planner-v0 \
         [--root DIR] [--sizes 1,8,32,128] [--hidden 256,512] [--dagger-rounds 2]
 Both print a table and, with ``--json FILE``, write it.
@@ -125,6 +125,7 @@ def cmd_fingertip_scaling(args: argparse.Namespace) -> dict[str, Any]:
         "corpus": str(args.corpus),
         "held_out": args.held_out,
         "rounds": args.rounds,
+        "fingering": args.fingering,
         "paper_bc_etude12": PAPER_BC_ETUDE12,
         "rows": [],
     }
@@ -133,7 +134,9 @@ def cmd_fingertip_scaling(args: argparse.Namespace) -> dict[str, Any]:
         if size > len(songs):
             raise SystemExit(f"the corpus has {len(songs)} songs, not {size}")
         start = time.perf_counter()
-        policy = train(songs[:size], args.rounds, FitConfig(seed=args.seed), workers=2)
+        policy = train(
+            songs[:size], args.rounds, FitConfig(seed=args.seed), 2, fingering=args.fingering
+        )
         own = evaluate_fingertip(policy, songs[: min(size, 8)])
         test = evaluate_fingertip(policy, held_out)
         row = {
@@ -218,6 +221,7 @@ def main() -> None:
     fs.add_argument("--rounds", type=int, default=1)
     fs.add_argument("--held-out", default="open-etude-12")
     fs.add_argument("--seed", type=int, default=0)
+    fs.add_argument("--fingering", choices=["plan", "song"], default="plan")
     sc = sub.add_parser("scaling", help="held-out F1 against training songs and model size")
     sc.add_argument("--dataset", required=True, help="a planner demonstration dataset id")
     sc.add_argument("--root", default=None, help="where datasets are stored")

@@ -40,6 +40,12 @@ def main() -> int:
     parser.add_argument("--steps", type=int, default=6000)
     parser.add_argument("--rounds", type=int, default=2)
     parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument(
+        "--fingering",
+        choices=["plan", "song"],
+        default="plan",
+        help="the fingering the policy reads: the planner's plan for this robot, or the song's",
+    )
     parser.add_argument("--out", type=Path, default=GENERALIST_DIR)
     args = parser.parse_args()
 
@@ -51,7 +57,7 @@ def main() -> int:
         subprocess.run([*command, *limit], check=True)
     songs = sorted(str(path) for path in corpus.glob("*.txt"))
     config = FitConfig(hidden_dims=tuple(args.hidden), steps=args.steps)
-    policy = train(songs, args.rounds, config, args.workers, log)
+    policy = train(songs, args.rounds, config, args.workers, log, args.fingering)
     policy.info["trained_by"] = "scripts/train_generalist.py " + " ".join(sys.argv[1:])
     policy.info["corpus"] = corpus.name
     save_policy(policy, args.out)

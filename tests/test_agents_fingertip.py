@@ -10,6 +10,7 @@ from pianist.agents.fingertip import (
     FingertipPolicy,
     Mode,
     load_policy,
+    read_fingering,
     save_policy,
 )
 from pianist.agents.fingertip.features import (
@@ -25,23 +26,24 @@ from pianist.agents.fingertip.features import (
     hand_features,
 )
 from pianist.agents.fingertip.training import FitConfig, expert_config, fit, record, train
-from pianist.eval.session import play
+from pianist.eval.session import make_env, play
 
 SONG = "c-major-scale-right"
 
 
-def _zero_policy() -> FingertipPolicy:
+def _zero_policy(fingering="plan") -> FingertipPolicy:
     layer = (np.zeros((FEATURE_DIM, OUTPUT_DIM), np.float32), np.zeros(OUTPUT_DIM, np.float32))
     net = NumpyMLP([layer], np.zeros(FEATURE_DIM), np.ones(FEATURE_DIM), "gelu")
-    return FingertipPolicy(net)
+    return FingertipPolicy(net, {"fingering": fingering})
 
 
 class _Replay(FingertipController):
     """Plays the expert's own decisions (recorded on the same state) through the decoding,
     optionally with every finger's mode replaced."""
 
-    def __init__(self, mode=None):
-        super().__init__(_zero_policy(), expert=ExpertRecorder(expert_config()))
+    def __init__(self, mode=None, fingering="plan"):
+        expert = ExpertRecorder(expert_config(fingering), fingering)
+        super().__init__(_zero_policy(fingering), expert=expert)
         self.mode = mode
 
     def decide(self, t):
@@ -133,13 +135,50 @@ def test_the_left_hand_sees_the_mirror_image_of_the_right():
     assert np.abs(right[1:]).sum() > 1.0  # the scene is not trivially empty
 
 
-def test_the_decoding_plays_the_experts_decisions_as_well_as_the_expert():
-    expert = play(SONG, ExpertRecorder(expert_config()), physics="fast", seed=0)
-    replay = play(SONG, _Replay(), physics="fast", seed=0)
-    lifted = play(SONG, _Replay(mode=Mode.LIFT), physics="fast", seed=0)
+@pytest.mark.parametrize("fingering", ["plan", "song"])
+def test_the_decoding_plays_the_experts_decisions_as_well_as_the_expert(fingering):
+    expert = play(SONG, ExpertRecorder(expert_config(fingering), fingering), physics="fast", seed=0)
+    replay = play(SONG, _Replay(fingering=fingering), physics="fast", seed=0)
+    lifted = play(SONG, _Replay(mode=Mode.LIFT, fingering=fingering), physics="fast", seed=0)
     assert expert.metrics["f1"] > 0.85
     assert abs(replay.metrics["f1"] - expert.metrics["f1"]) < 0.03, (replay.metrics, expert.metrics)
     assert lifted.metrics["f1"] < 0.1  # the modes decide: every finger lifted plays nothing
+
+
+# A piece whose plan re-fingers it: the chorale's inner voices are given to fingers that reach
+# them from the hand positions the planner chose.
+PIECE = "bach-chorale-bwv66-6"
+
+
+def test_the_plan_fingering_is_the_planners_own_and_the_policy_reads_it():
+    from pianist.control.planner import IKPlanner
+
+    env = make_env(PIECE, IKPlanner(), physics="fast")
+    planner = IKPlanner()
+    planner.reset(env, seed=0)
+    song = read_fingering(planner, "song")
+    plan = read_fingering(planner, "plan")
+    keys = planner.goal.keys
+    np.testing.assert_array_equal(song, planner.goal.fingers)
+    assert ((plan >= 0) == keys).all()  # a finger for every due key, none elsewhere
+    assert (plan[keys] != song[keys]).mean() > 0.1  # the plan fingers it anew
+    with pytest.raises(ValueError, match="unknown fingering"):
+        read_fingering(planner, "pianist")
+    # A policy that reads the plan's fingering plans at reset and reads that plan.
+    controller = FingertipController(_zero_policy("plan"))
+    controller.reset(env, seed=0)
+    np.testing.assert_array_equal(controller.fingers, plan)
+    # One saved before the choice existed reads the song's.
+    old = FingertipController(FingertipPolicy(_zero_policy().net))
+    old.reset(env, seed=0)
+    np.testing.assert_array_equal(old.fingers, song)
+
+
+def test_a_policy_and_its_expert_must_read_the_same_fingering():
+    with pytest.raises(ValueError, match="reads the song fingering"):
+        FingertipController(_zero_policy("song"), expert=ExpertRecorder(expert_config("plan")))
+    with pytest.raises(ValueError, match="reads the song fingering"):
+        record([SONG], _zero_policy("song"), workers=1, fingering="plan")
 
 
 def test_the_expert_records_one_row_per_hand_and_step():

@@ -1,9 +1,10 @@
 """The generalist shipped with the package: one policy for any song, trained on none of them.
 
 ``pianist play SONG --controller generalist`` plays with it right after install, in NumPy,
-with no training and no plan at play time: a :class:`pianist.agents.fingertip.FingertipPolicy`
-(an MLP that, per hand and step, says where the forearm goes and what each finger does, from
-the next second of the song and the hand's state), played through the planner's execution
+with no training at play time: a :class:`pianist.agents.fingertip.FingertipPolicy` (an MLP
+that, per hand and step, says where the forearm goes and what each finger does, from the next
+second of the song, fingered for this robot by the planner's whole-piece plan at reset, and
+the hand's state), played through the planner's execution
 stages (the slide's servo, fingertip targets, inverse kinematics). Stored in
 ``pianist/agents/data/generalist/``. It was trained by DAgger with the IK planner as the
 expert on Bach chorales of the music21 corpus cut into segments; ``open-etude-12`` and the

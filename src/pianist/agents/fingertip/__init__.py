@@ -11,6 +11,7 @@ from pianist.agents.fingertip.controller import (
     FingertipController,
     FingertipPolicy,
     load_policy,
+    read_fingering,
     save_policy,
 )
 from pianist.agents.fingertip.features import Mode
@@ -21,5 +22,6 @@ __all__ = [
     "FingertipPolicy",
     "Mode",
     "load_policy",
+    "read_fingering",
     "save_policy",
 ]

@@ -2,7 +2,8 @@
 
 Each step, for each hand, the policy (:mod:`features`) says where the forearm's slide should
 be at the end of the next step and what each finger does (:class:`Mode`); this module turns
-that into the action with the planner's fixed stages and no plan:
+that into the action with the planner's fixed stages, following no plan (a policy that reads
+the plan's fingering has the planner plan the piece at reset for that alone):
 
 1. the slide is steered to the policy's target through its servo's exact dynamics (the
    planner's ``_Servo``), the height slide and the wrist held as the planner holds them;
@@ -21,7 +22,7 @@ import json
 import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import gymnasium as gym
 import mujoco
@@ -55,9 +56,12 @@ CONFIG_FILE = "fingertip.json"
 WEIGHTS_FILE = "weights.npz"
 
 
-def step_features(p: IKPlanner, nxt: NextKeys, t: int, last_modes: np.ndarray) -> np.ndarray:
+def step_features(
+    p: IKPlanner, nxt: NextKeys, t: int, last_modes: np.ndarray, fingers: np.ndarray
+) -> np.ndarray:
     """Every hand's features at step ``t`` (``p`` set up: :meth:`IKPlanner.setup`), shape
-    (H, :data:`FEATURE_DIM`), hands in the scene's order; ``last_modes`` (10,) int."""
+    (H, :data:`FEATURE_DIM`), hands in the scene's order; ``last_modes`` (10,) int;
+    ``fingers`` (T, 88) the fingering the policy reads (:func:`read_fingering`)."""
     data = p.handle.data
     key_down = data.qpos[p.key_qpos] >= p.key_threshold
     roots = [hand.root_y + data.qpos[hand.tx_qpos] for hand in p.hands]
@@ -85,7 +89,7 @@ def step_features(p: IKPlanner, nxt: NextKeys, t: int, last_modes: np.ndarray) -
                 view,
                 t,
                 p.goal.keys,
-                p.goal.fingers,
+                fingers,
                 nxt,
                 p.key_point,
                 p.key_top_z,
@@ -155,10 +159,31 @@ def load_policy(folder: str | Path) -> FingertipPolicy:
         raise ValueError(f"{folder} is not a readable fingertip policy ({exc})") from None
 
 
+#: Which fingering a policy reads: the song's own, or the one the planner's whole-piece plan
+#: makes for this robot at reset (:func:`read_fingering`).
+Fingering = Literal["song", "plan"]
+
+
+def read_fingering(p: IKPlanner, fingering: Fingering) -> np.ndarray:
+    """(T, 88) int: the finger (0-9) that presses each due key, -1 where none.
+
+    ``"song"``: the song's own labels. ``"plan"``: the planner's (``p`` reset, so planned):
+    with its default ``hand_planning`` it fingers the piece for this robot, whose fingers
+    other than the thumb each reach about one white key from a hand position, and gives the
+    keys one hand cannot reach to the other (``docs/generalist.md``).
+    """
+    if fingering == "song":
+        return p.goal.fingers
+    if fingering == "plan":
+        return np.where(p.goal.keys, p.fingers, -1)
+    raise ValueError(f"unknown fingering {fingering!r}: use 'song' or 'plan'")
+
+
 class FingertipController(BaseController):
-    """Plays any fingered song with a :class:`FingertipPolicy` (no plan, no look-ahead past
-    :data:`WINDOW` frames). ``expert``: an :class:`IKPlanner` run in lock-step on the same
-    states whose decisions are recorded as labels (DAgger), not played."""
+    """Plays any fingered song with a :class:`FingertipPolicy` (no plan followed, no
+    look-ahead past :data:`WINDOW` frames). ``expert``: an :class:`IKPlanner` run in
+    lock-step on the same states whose decisions are recorded as labels (DAgger), not
+    played."""
 
     def __init__(
         self,
@@ -169,16 +194,31 @@ class FingertipController(BaseController):
         self.policy = policy if isinstance(policy, FingertipPolicy) else load_policy(policy)
         self.config = config or PlannerConfig()
         self.expert = expert
+        if expert is not None and expert.fingering != self.fingering:
+            raise ValueError(
+                f"the policy reads the {self.fingering} fingering, its expert labels with the "
+                f"{expert.fingering} one"
+            )
 
     def env_options(self, song: Any = None) -> dict[str, Any]:
         """The planner's scene (forearm height slide), whatever the song."""
         return dict(ENV_OPTIONS)
 
+    @property
+    def fingering(self) -> Fingering:
+        """The fingering the policy was trained to read (policies from before the choice
+        existed read the song's)."""
+        return self.policy.info.get("fingering", "song")
+
     def reset(self, env: gym.Env, seed: int | None = None) -> None:
         self.stages = IKPlanner(self.config)
-        self.stages.setup(env)
+        if self.fingering == "plan":
+            self.stages.reset(env, seed)  # the whole-piece plan, for its fingering only
+        else:
+            self.stages.setup(env)
         p = self.stages
-        self.next_keys = NextKeys.of(p.goal.keys, p.goal.fingers)
+        self.fingers = read_fingering(p, self.fingering)
+        self.next_keys = NextKeys.of(p.goal.keys, self.fingers)
         self.servos = [_Servo(p.model, h.tx_actuator, h.tx_dof, p.dt) for h in p.hands]
         self.last_modes = np.zeros(2 * FINGERS, dtype=int)
         if self.expert is not None:
@@ -228,7 +268,7 @@ class FingertipController(BaseController):
 
     def decide(self, t: int) -> np.ndarray:
         """The policy's outputs for every hand at step ``t``, (H, :data:`OUTPUT_DIM`)."""
-        self.features = step_features(self.stages, self.next_keys, t, self.last_modes)
+        self.features = step_features(self.stages, self.next_keys, t, self.last_modes, self.fingers)
         return self.policy.net(self.features)
 
     def _targets(self, hand, t: int, modes: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -264,11 +304,17 @@ class FingertipController(BaseController):
 class ExpertRecorder(IKPlanner):
     """The planner, recording for every step it acts the policy's features of that state and
     its own decisions as the policy's outputs (its labels): ``features`` and ``labels``,
-    lists of (H, D) and (H, :data:`OUTPUT_DIM`) arrays."""
+    lists of (H, D) and (H, :data:`OUTPUT_DIM`) arrays. ``fingering``: the one the policy
+    reads (:func:`read_fingering`)."""
+
+    def __init__(self, config: PlannerConfig | None = None, fingering: Fingering = "plan") -> None:
+        super().__init__(config)
+        self.fingering = fingering
 
     def reset(self, env: gym.Env, seed: int | None = None) -> None:
         super().reset(env, seed)
-        self.next_keys = NextKeys.of(self.goal.keys, self.goal.fingers)
+        self.read_fingers = read_fingering(self, self.fingering)
+        self.next_keys = NextKeys.of(self.goal.keys, self.read_fingers)
         self.last_modes = np.zeros(2 * FINGERS, dtype=int)
         self.features: list[np.ndarray] = []
         self.labels: list[np.ndarray] = []
@@ -277,7 +323,7 @@ class ExpertRecorder(IKPlanner):
         data = self.handle.data
         T = self.goal.num_frames
         t = min(self.handle.step_index, T - 1)
-        x = step_features(self, self.next_keys, t, self.last_modes)
+        x = step_features(self, self.next_keys, t, self.last_modes, self.read_fingers)
         before = [(float(data.qpos[h.tx_qpos])) for h in self.hands]
         action = super().act(observation)
         y = np.zeros((len(self.hands), OUTPUT_DIM), dtype=np.float32)
@@ -286,7 +332,7 @@ class ExpertRecorder(IKPlanner):
             pos, vel = hand.tx_path[min(t, len(hand.tx_path) - 3) + 1]
             y[i, 0] = encode_move(sign * (pos - before[i]), MOVE_UNIT_M)
             y[i, 1] = encode_move(sign * vel, SPEED_UNIT)
-            modes = _modes(hand, self.fingers, t, self.next_keys)
+            modes = _modes(hand, t, self.next_keys)
             onehot = -np.ones((FINGERS, NUM_MODES), dtype=np.float32)
             onehot[np.arange(FINGERS), modes] = 1.0
             y[i, 2:] = onehot.ravel()
@@ -297,10 +343,10 @@ class ExpertRecorder(IKPlanner):
         return action
 
 
-def _modes(hand, fingers: np.ndarray, t: int, nxt: NextKeys) -> np.ndarray:
+def _modes(hand, t: int, nxt: NextKeys) -> np.ndarray:
     """(5,) each finger's :class:`Mode` this step as the planner played it; a finger whose
-    next key (by the song's fingering) is not in the window, or not the one the planner
-    targets, counts as lifted (the policy's decoding could not follow it)."""
+    next key (by the fingering the policy reads) is not in the window counts as lifted (the
+    policy's decoding could not follow it)."""
     from pianist.agents.fingertip.features import mode_of
 
     modes = np.array(

@@ -1,8 +1,9 @@
 """Training a fingertip policy: the planner's decisions recorded, behaviour cloning, DAgger.
 
-1. :func:`record`: the expert (:func:`expert_config`, the planner with the song's own
-   fingering) plays every song once; each step gives every hand's features and the
-   expert's decisions (:class:`~pianist.agents.fingertip.controller.ExpertRecorder`).
+1. :func:`record`: the expert (:func:`expert_config`: the default planner, whose plan
+   fingers the piece for the robot, or the planner with the song's own fingering) plays
+   every song once; each step gives every hand's features and the expert's decisions
+   (:class:`~pianist.agents.fingertip.controller.ExpertRecorder`).
 2. :func:`fit`: an MLP fitted to them by mean squared error on the tanh outputs (the modes
    as +-1 one-hot scores), with :class:`pianist.agents.bc.Trainer` (JAX).
 3. :func:`train`: then ``rounds`` of DAgger. Each round the current policy plays a share of
@@ -28,6 +29,7 @@ import numpy as np
 
 from pianist.agents.fingertip.controller import (
     ExpertRecorder,
+    Fingering,
     FingertipController,
     FingertipPolicy,
     save_policy,
@@ -37,10 +39,14 @@ from pianist.control.planner import PlannerConfig
 Log = Callable[[str], None]
 
 
-def expert_config() -> PlannerConfig:
-    """The planner the policy learns from: its whole-piece hand plan with the song's own
-    fingering, since the policy presses each key with the finger the song gives it (the
-    default planner's re-fingered plans would label keys the policy cannot follow)."""
+def expert_config(fingering: Fingering = "plan") -> PlannerConfig:
+    """The planner the policy learns from. The policy presses each key with the finger of
+    the fingering it reads: for ``"plan"`` the default planner, whose own plan is that
+    fingering (open-etude-12 0.777, fast); for ``"song"`` the planner's whole-piece hand
+    plan with the song's fingering (0.690: a pianist's fingering spans more than this
+    hand)."""
+    if fingering == "plan":
+        return PlannerConfig()
     return PlannerConfig(hand_planning="piece", refinger=False)
 
 
@@ -70,11 +76,13 @@ class Recording:
     f1: dict[str, float]
 
 
-def _play_one(args: tuple[str, str | None, str]) -> tuple[np.ndarray, np.ndarray, float]:
+def _play_one(
+    args: tuple[str, str | None, str, Fingering],
+) -> tuple[np.ndarray, np.ndarray, float]:
     from pianist.eval.session import play
 
-    song, policy_dir, physics = args
-    expert = ExpertRecorder(expert_config())
+    song, policy_dir, physics, fingering = args
+    expert = ExpertRecorder(expert_config(fingering), fingering)
     controller: Any = (
         expert if policy_dir is None else FingertipController(policy_dir, expert=expert)
     )
@@ -88,14 +96,18 @@ def record(
     workers: int = 2,
     physics: str = "fast",
     log: Log | None = None,
+    fingering: Fingering = "plan",
 ) -> Recording:
     """Play each song once (song names or files): the expert alone (``policy`` None), or the
-    policy with the expert labelling its states; ``f1`` is the player's."""
+    policy with the expert labelling its states; ``f1`` is the player's. ``fingering``: the
+    one the policy reads (a policy's own ``info["fingering"]`` must agree)."""
+    if policy is not None and policy.info.get("fingering", "song") != fingering:
+        raise ValueError(f"the policy reads the {policy.info.get('fingering', 'song')} fingering")
     with tempfile.TemporaryDirectory() as tmp:
         policy_dir = None
         if policy is not None:
             policy_dir = str(save_policy(policy, Path(tmp) / "policy"))
-        jobs = [(str(song), policy_dir, physics) for song in songs]
+        jobs = [(str(song), policy_dir, physics, fingering) for song in songs]
         if workers <= 1:
             results = [_play_one(job) for job in jobs]
         else:
@@ -138,26 +150,30 @@ def train(
     config: FitConfig | None = None,
     workers: int = 2,
     log: Log | None = None,
+    fingering: Fingering = "plan",
 ) -> FingertipPolicy:
     """The expert's recordings of ``songs``, a fit, then ``rounds`` of DAgger, each on the
-    next 1/``rounds`` of the songs (every song played once by the policy over the rounds)."""
+    next 1/``rounds`` of the songs (every song played once by the policy over the rounds).
+    ``fingering``: the one the policy reads (:func:`expert_config`)."""
     config = config or FitConfig()
     say = log or (lambda line: None)
     start = time.perf_counter()
     say(f"recording the expert on {len(songs)} songs")
-    data = record(songs, None, workers, log=say)
+    data = record(songs, None, workers, log=say, fingering=fingering)
     xs, ys = [data.x], [data.y]
     steps = config.steps
     policy = fit(data.x, data.y, config, steps)
+    policy.info["fingering"] = fingering
     history: list[dict[str, Any]] = [{"expert_f1": float(np.mean(list(data.f1.values())))}]
     for r in range(rounds):
         share = list(songs[r::rounds])
         say(f"DAgger round {r + 1}/{rounds}: the policy plays {len(share)} songs")
-        played = record(share, policy, workers, log=say)
+        played = record(share, policy, workers, log=say, fingering=fingering)
         xs.append(played.x)
         ys.append(played.y)
         steps += config.round_steps
         policy = fit(np.concatenate(xs), np.concatenate(ys), config, steps)
+        policy.info["fingering"] = fingering
         history.append(
             {
                 "round": r + 1,
