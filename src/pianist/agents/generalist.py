@@ -7,8 +7,9 @@ second of the song, fingered for this robot by the planner's whole-piece plan at
 the hand's state), played through the planner's execution
 stages (the slide's servo, fingertip targets, inverse kinematics). Stored in
 ``pianist/agents/data/generalist/``. It was trained by DAgger with the IK planner as the
-expert on Bach chorales of the music21 corpus cut into segments; ``open-etude-12`` and the
-debug songs were held out. How to train it again, and what it scores: ``docs/generalist.md``.
+expert on Bach chorales of the music21 corpus cut into segments and on generated etudes;
+``open-etude-12`` and the debug songs were held out. How to train it again, and what it
+scores: ``docs/generalist.md``.
 """
 
 from __future__ import annotations
