@@ -6,9 +6,9 @@ in NumPy; per song F1, precision, recall and the real-time factor (simulated sec
 wall-clock second), and the mean per suite.
 
 ``fingertip-scaling``: the same experiment for the fingertip policy (the shipped design,
-:mod:`pianist.agents.fingertip.training`): for each N, a policy trained on the first N songs
-of a corpus folder (the expert's recordings, a fit, ``--rounds`` of DAgger), scored on the
-held-out suite.
+:mod:`pianist.agents.fingertip.training`): for each N and network size, a policy trained on
+the first N songs of a fixed shuffle of the corpus folders (the expert's recordings, a fit,
+``--rounds`` of DAgger), scored on the held-out suite.
 
 ``scaling``: the paper's multi-song BC experiment (joint angles), extended with DAgger. For
 each number of training songs N (the first N songs of a planner demonstration dataset) and
@@ -19,8 +19,9 @@ distilled from its RL specialists, <= ~0.15 zero-shot on etude-12.
 
 Run:
     python benchmarks/bench_generalist.py eval [--policy DIR] [--suites open-etude-12,debug]
-    python benchmarks/bench_generalist.py fingertip-scaling --corpus corpus/chorales-all \
-        [--sizes 1,8,32,120] [--rounds 1] [--fingering plan|song]
+    python benchmarks/bench_generalist.py fingertip-scaling \
+        --corpus corpus/chorales-all corpus/etudes-400 [--sizes 8,64,256] \
+        [--hidden 256x256,512x512] [--rounds 1] [--fingering plan|song]
     python benchmarks/bench_generalist.py scaling --dataset pianist/chorales-planner-v0 \
         [--root DIR] [--sizes 1,8,32,128] [--hidden 256,512] [--dagger-rounds 2]
 Both print a table and, with ``--json FILE``, write it.
@@ -119,39 +120,44 @@ def cmd_eval(args: argparse.Namespace) -> dict[str, Any]:
 def cmd_fingertip_scaling(args: argparse.Namespace) -> dict[str, Any]:
     from pianist.agents.fingertip.training import FitConfig, train
 
-    songs = sorted(str(p) for p in Path(args.corpus).glob("*.txt"))
+    songs = sorted(str(p) for folder in args.corpus for p in Path(folder).glob("*.txt"))
+    # The first N of a fixed shuffle, so that every N draws from every corpus given.
+    songs = [songs[i] for i in np.random.default_rng(0).permutation(len(songs))]
     held_out = list_songs(args.held_out)
     result: dict[str, Any] = {
-        "corpus": str(args.corpus),
+        "corpus": [str(c) for c in args.corpus],
         "held_out": args.held_out,
         "rounds": args.rounds,
         "fingering": args.fingering,
         "paper_bc_etude12": PAPER_BC_ETUDE12,
         "rows": [],
     }
-    print(f"{'songs':>5s} {'train F1':>8s} {'held-out F1':>11s} {'minutes':>7s}")
+    print(f"{'songs':>5s} {'hidden':>8s} {'train F1':>8s} {'held-out F1':>11s} {'minutes':>7s}")
     for size in [int(s) for s in args.sizes.split(",")]:
         if size > len(songs):
             raise SystemExit(f"the corpus has {len(songs)} songs, not {size}")
-        start = time.perf_counter()
-        policy = train(
-            songs[:size], args.rounds, FitConfig(seed=args.seed), 2, fingering=args.fingering
-        )
-        own = evaluate_fingertip(policy, songs[: min(size, 8)])
-        test = evaluate_fingertip(policy, held_out)
-        row = {
-            "songs": size,
-            "train_f1": _mean(own),
-            "held_out_f1": _mean(test),
-            "held_out": {k: v["f1"] for k, v in test.items()},
-            "history": policy.info["history"],
-            "minutes": (time.perf_counter() - start) / 60,
-        }
-        result["rows"].append(row)
-        print(
-            f"{size:5d} {row['train_f1']:8.3f} {row['held_out_f1']:11.3f} {row['minutes']:7.1f}",
-            flush=True,
-        )
+        for hidden in args.hidden.split(","):
+            dims = tuple(int(h) for h in hidden.split("x"))
+            start = time.perf_counter()
+            config = FitConfig(hidden_dims=dims, seed=args.seed)
+            policy = train(songs[:size], args.rounds, config, 2, fingering=args.fingering)
+            own = evaluate_fingertip(policy, songs[: min(size, 8)])
+            test = evaluate_fingertip(policy, held_out)
+            row = {
+                "songs": size,
+                "hidden": list(dims),
+                "train_f1": _mean(own),
+                "held_out_f1": _mean(test),
+                "held_out": {k: v["f1"] for k, v in test.items()},
+                "history": policy.info["history"],
+                "minutes": (time.perf_counter() - start) / 60,
+            }
+            result["rows"].append(row)
+            print(
+                f"{size:5d} {hidden:>8s} {row['train_f1']:8.3f} {row['held_out_f1']:11.3f} "
+                f"{row['minutes']:7.1f}",
+                flush=True,
+            )
     return result
 
 
@@ -216,8 +222,9 @@ def main() -> None:
     ev.add_argument("--policy", type=Path, default=GENERALIST_DIR)
     ev.add_argument("--suites", default="open-etude-12,debug,robopianist-debug")
     fs = sub.add_parser("fingertip-scaling", help="the fingertip policy against training songs")
-    fs.add_argument("--corpus", required=True, help="a folder of training songs (.txt)")
-    fs.add_argument("--sizes", default="1,8,32,120")
+    fs.add_argument("--corpus", required=True, nargs="+", help="folders of training songs (.txt)")
+    fs.add_argument("--sizes", default="8,64,256")
+    fs.add_argument("--hidden", default="256x256", help="network sizes, e.g. 256x256,512x512")
     fs.add_argument("--rounds", type=int, default=1)
     fs.add_argument("--held-out", default="open-etude-12")
     fs.add_argument("--seed", type=int, default=0)
