@@ -66,11 +66,10 @@ class Harmony:
 
 @dataclass(frozen=True)
 class Measure:
-    """Where a figure writes: the measure's start (s), beats and beat length (s), harmony."""
+    """What a figure writes over: the measure's beats and harmony (figures count in beats;
+    :func:`generate_etude` turns beats into seconds)."""
 
-    start_s: float
     beats: int
-    beat_s: float
     harmony: Harmony
 
 
@@ -297,8 +296,8 @@ def generate_etude(
         state: dict = {}
         for k in range(measures):
             harmony = Harmony(tonic, scale, progression[k % len(progression)])
-            measure = Measure(k * beats * beat_s, beats, beat_s, harmony)
+            measure = Measure(beats, harmony)
             for pitch, onset, length in FIGURES[figure](measure, rng, state):
-                start = measure.start_s + onset * beat_s
+                start = (k * beats + onset) * beat_s
                 notes.append(Note(int(pitch), start, start + 0.9 * length * beat_s, 80, None, hand))
     return Song(tuple(notes), name=name or f"etude-{seed}-{right}-{left}")
