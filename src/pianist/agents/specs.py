@@ -1,7 +1,8 @@
 """Controllers from their specs, the strings of ``--controller``: the one resolver that the
 command line, sweeps and datasets share.
 
-``policy:RUN_DIR`` (a trained agent), ``bc:DIR`` (a behaviour-cloning policy), ``generalist``
+``policy:RUN_DIR`` (a trained agent, or a practised piece: a ``--preset practice`` run),
+``bc:DIR`` (a behaviour-cloning policy), ``generalist``
 (the behaviour-cloning policy shipped with the package), or anything
 :func:`pianist.control.make_controller` takes (``planner``, ``refine[:...]``, ``search[:...]``,
 ``mpc[:...]``, ``random``, ``zero``, ``replay:ACTIONS.npy``).
@@ -20,8 +21,12 @@ def controller_from_spec(spec: str) -> Any:
     """
     if spec.startswith("policy:"):
         from pianist.agents.policy import PolicyController
+        from pianist.agents.practice import CorrectedPlanner, is_practice_run
 
-        return PolicyController(spec.removeprefix("policy:"))
+        run_dir = spec.removeprefix("policy:")
+        if is_practice_run(run_dir):
+            return CorrectedPlanner.load(run_dir)
+        return PolicyController(run_dir)
     if spec == "generalist":
         from pianist.agents.generalist import generalist_controller
 

@@ -6,7 +6,7 @@ import math
 import sys
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
 import tyro
 
@@ -29,10 +29,11 @@ class Train:
     ] = None
     """A built-in song name, a MIDI file or a PIG file."""
     preset: str = DEFAULT_PRESET
-    """residual-anchored (a correction learned on top of the planner: the best measured per
-    minute on real pieces), fast-small (from scratch: Twinkle in minutes), droq-paper (the
-    paper's recipe: millions of steps), droq-paper-pipelined, sac, redq, fast, fast-utd2,
-    residual, residual-windows."""
+    """residual-anchored (a correction learned on top of the planner), practice (a
+    correction per step learned by replaying the piece with the refiner's look-ahead: no
+    network, no JAX; the best measured per minute on real pieces), fast-small (from
+    scratch: Twinkle in minutes), droq-paper (the paper's recipe: millions of steps),
+    droq-paper-pipelined, sac, redq, fast, fast-utd2, residual, residual-windows."""
     steps: Annotated[
         int | None,
         tyro.conf.arg(help_behavior_hint="(default: 1000000; when resuming, the run's own)"),
@@ -45,6 +46,13 @@ class Train:
     """Run directory (created if missing)."""
     resume: Annotated[Path | None, tyro.conf.arg(help_behavior_hint="(optional)")] = None
     """Continue the run in this directory from its newest checkpoint."""
+    passes: Annotated[int | None, tyro.conf.arg(help_behavior_hint="(practice: default 20)")] = None
+    """--preset practice: the most passes over the piece (--minutes may stop it sooner)."""
+    physics: Annotated[
+        Literal["faithful", "fast"] | None,
+        tyro.conf.arg(help_behavior_hint="(practice: default faithful)"),
+    ] = None
+    """--preset practice: the physics preset practised in (the piece is played in it later)."""
     progress: bool = True
     """Show a progress bar with steps/s and the latest F1 (on a terminal only: a redrawn bar
     would write thousands of lines into a pipe or log file)."""
@@ -58,6 +66,11 @@ class Train:
         if self.minutes is not None and not (math.isfinite(self.minutes) and self.minutes > 0):
             raise CliError(f"--minutes must be a positive number, not {self.minutes}")
         budget_s = None if self.minutes is None else 60.0 * self.minutes
+        if self._practice():
+            self._run_practice(budget_s)
+            return
+        if self.passes is not None or self.physics is not None:
+            raise CliError("--passes and --physics apply to --preset practice only")
         _require_jax()
         show_bar = self.progress and sys.stderr.isatty()
         if self.resume is not None:
@@ -98,6 +111,64 @@ class Train:
                 f"{result.run_dir / 'best'}"
             )
 
+    def _practice(self) -> bool:
+        from pianist.agents.practice import is_practice_run
+
+        if self.resume is not None:
+            return is_practice_run(self.resume)
+        return self.preset == "practice"
+
+    def _run_practice(self, budget_s: float | None) -> None:
+        from dataclasses import replace
+
+        from pianist.agents.practice import (
+            PracticeConfig,
+            load_practice,
+            practise,
+            save_practice,
+            write_practice_config,
+        )
+        from pianist.music import load_song
+
+        if self.steps is not None:
+            raise CliError("--steps does not apply to --preset practice; use --passes or --minutes")
+        if self.passes is not None and self.passes < 1:
+            raise CliError(f"--passes must be at least 1, not {self.passes}")
+        start = None
+        if self.resume is not None:
+            run_dir = self.resume
+            song_spec, config, start = load_practice(run_dir)
+            if self.physics is not None and self.physics != config.physics:
+                raise CliError(
+                    f"{run_dir} practises in {config.physics} physics, not {self.physics}"
+                )
+        else:
+            if self.song is None:
+                raise CliError("give a SONG to train on, or --resume DIR")
+            run_dir, song_spec = self.out, self.song
+            config = PracticeConfig(physics=self.physics or "faithful")
+        if self.passes is not None:
+            config = replace(config, passes=self.passes)
+        song = load_song(song_spec, fingering="auto")
+        if song.fingering_coverage < 1.0:
+            raise CliError(f"{song_spec}: practice needs a finger on every note")
+        _prepare_dir(run_dir)
+        write_practice_config(run_dir, song_spec, config)
+
+        def saved(result: Any) -> None:
+            save_practice(run_dir, result, config)
+            row = result.history[-1]
+            _out(
+                f"pass {row['pass']}: F1 {row['f1']:.3f} (best {result.f1:.3f}), "
+                f"{row['seconds']:.0f} s"
+            )
+
+        result = practise(song, config, stop_after_s=budget_s, start=start, on_pass=saved)
+        _out(
+            f"practised {result.history[-1]['pass']} passes: best F1 {result.f1:.3f} "
+            f"(pass {result.pass_index}) -> {run_dir}"
+        )
+
 
 @dataclass(frozen=True)
 class Eval:
@@ -121,24 +192,40 @@ class Eval:
 
     def run(self) -> None:
         from pianist.agents import PolicyController
+        from pianist.agents.practice import CorrectedPlanner, is_practice_run
         from pianist.eval.session import play
         from pianist.media.results import MediaOptions, check_output_folder, write_result
 
-        controller = PolicyController(self.run_dir, physics=self.physics)
         out = self.out or self.run_dir / "eval"
-        check_output_folder(out)
-        result = play(self.song, controller, seed=self.seed)
+        if is_practice_run(self.run_dir):
+            if self.physics is not None:
+                raise CliError("a practised piece plays in the physics it was practised in")
+            practised = CorrectedPlanner.load(self.run_dir)
+            check_output_folder(out)
+            result = play(self.song, practised, seed=self.seed)
+            extra: dict[str, Any] = {
+                "song": self.song,
+                "run": str(self.run_dir),
+                "preset": "practice",
+                "trained_physics": practised.physics,
+            }
+            step = "practised"
+        else:
+            controller = PolicyController(self.run_dir, physics=self.physics)
+            check_output_folder(out)
+            result = play(self.song, controller, seed=self.seed)
+            extra = {
+                "song": self.song,
+                "run": str(self.run_dir),
+                "checkpoint_step": controller.step,
+                "preset": controller.config.preset,
+                "trained_physics": controller.config.task.physics,
+            }
+            step = f"policy at step {controller.step}"
         metrics = result.metrics
-        extra = {
-            "song": self.song,
-            "run": str(self.run_dir),
-            "checkpoint_step": controller.step,
-            "preset": controller.config.preset,
-            "trained_physics": controller.config.task.physics,
-        }
         write_result(result, out, MediaOptions(audio=False), extra_metrics=extra)
         _out(
             f"{self.song}: precision {metrics['precision']:.3f}  recall {metrics['recall']:.3f}  "
             f"F1 {metrics['f1']:.3f}  sustain F1 {metrics['sustain_f1']:.3f}  "
-            f"(policy at step {controller.step}) -> {out}"
+            f"({step}) -> {out}"
         )

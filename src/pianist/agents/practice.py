@@ -1,0 +1,340 @@
+"""Practice: learning one piece by playing it again and again with the physics.
+
+What is learned is a correction per step, ``table`` (T, A) float64: the action at step ``t``
+is the inverse-kinematics planner's action plus ``table[t]`` (:class:`CorrectedPlanner`). The
+planner stays in the loop, so the corrections are feed-forward nudges on top of a controller
+that still reacts to where the hands are.
+
+A practice pass plays the whole piece with the refiner (:class:`pianist.control.refine.Refiner`)
+around the corrected planner: at every step it looks ahead with perturbations of the fingers'
+part of the action, plays the best, and the action played becomes the step's new correction.
+The unperturbed candidate is the last pass's own action, so each pass starts from the
+performance the previous one reached and only moves where looking ahead finds better; the
+refiner's samples differ from pass to pass. The pass's F1 is the F1 of its table replayed (the
+table reproduces the played actions exactly, and the episode is deterministic), and the table
+of the best pass is kept.
+
+Compared with the refiner played live (``--refine``, ~0.5x real time), a practised piece plays
+at the planner's speed, and the passes after the first add what one look-ahead could not find.
+Compared with reinforcement learning from the reward, it learns nothing that carries over to
+another piece: the table is indexed by the step of this piece in this scene, and it is refused
+for any other.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import io
+import json
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import gymnasium as gym
+import numpy as np
+
+from pianist.control.planner import IKPlanner
+from pianist.control.refine import RefineOptions, Refiner
+from pianist.env.handle import control_handle
+from pianist.files import write_bytes_atomic, write_json_atomic
+
+if TYPE_CHECKING:
+    from pianist.music import GoalFrames, Song
+
+TABLE = "practice.npz"
+"""The file of a practice run directory holding the best table and what it was learned on."""
+CONFIG = "config.json"
+LOG = "log.jsonl"
+
+
+def goal_fingerprint(goal: GoalFrames) -> str:
+    """A hex digest of a song's goal frames (keys and pedal per step): a table learned on one
+    piece is refused for any other, and for the same piece with another lead-in."""
+    digest = hashlib.sha256()
+    digest.update(np.asarray(goal.keys.shape, dtype=np.int64).tobytes())
+    digest.update(np.packbits(goal.keys).tobytes())
+    digest.update(np.packbits(goal.sustain).tobytes())
+    return digest.hexdigest()[:16]
+
+
+@dataclass(frozen=True)
+class PracticeConfig:
+    """How a piece is practised."""
+
+    passes: int = 20
+    """Most practice passes (each plays the whole piece once with the refiner)."""
+    physics: str = "faithful"
+    """The physics preset practised in, and played in afterwards: a table is a correction of
+    that physics' trajectories and does not transfer to the other preset."""
+    seed: int = 0
+    """Seeds the refiner's perturbations (pass p draws from ``(seed, p)``)."""
+    refine: RefineOptions = field(default_factory=RefineOptions)
+    """The look-ahead of every pass."""
+
+    def __post_init__(self) -> None:
+        if self.passes < 1:
+            raise ValueError(f"practice needs at least 1 pass, not {self.passes}")
+        from pianist.sim.scene import PHYSICS_PRESETS
+
+        if self.physics not in PHYSICS_PRESETS:
+            raise ValueError(
+                f"unknown physics {self.physics!r}; use one of {', '.join(PHYSICS_PRESETS)}"
+            )
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> PracticeConfig:
+        data = dict(data)
+        data["refine"] = RefineOptions(**data.get("refine", {}))
+        return cls(**data)
+
+
+class CorrectedPlanner(IKPlanner):
+    """The planner with a learned correction added to its action at every step.
+
+    ``table``: (T, A) corrections in action units for the T steps of one piece (steps past T
+    get none). ``fingerprint``: the goal frames' :func:`goal_fingerprint` the table was
+    learned on (None: not checked); ``physics``: the preset it was learned in (None: any).
+    """
+
+    def __init__(
+        self,
+        table: np.ndarray,
+        *,
+        fingerprint: str | None = None,
+        physics: str | None = None,
+    ) -> None:
+        super().__init__()
+        table = np.asarray(table, dtype=np.float64)
+        if table.ndim != 2:
+            raise ValueError(f"a correction table is (T, A), not {table.shape}")
+        self.table = table
+        self.fingerprint = fingerprint
+        self.physics = physics
+        self.raw_actions: dict[int, np.ndarray] = {}
+        self._main_data: Any = None
+
+    @classmethod
+    def load(cls, run_dir: str | Path) -> CorrectedPlanner:
+        """The best table of a practice run directory (:func:`practise`).
+
+        Raises:
+            FileNotFoundError: no practice table there; ValueError: an unreadable one.
+        """
+        path = Path(run_dir) / TABLE
+        if not path.is_file():
+            raise FileNotFoundError(f"{run_dir} holds no practised piece ({TABLE} is missing)")
+        try:
+            with np.load(path, allow_pickle=False) as data:
+                table = data["table"]
+                fingerprint = str(data["fingerprint"])
+                physics = str(data["physics"])
+        except (OSError, KeyError, ValueError) as exc:
+            raise ValueError(f"{path} is not a practice table ({exc})") from None
+        return cls(table, fingerprint=fingerprint, physics=physics)
+
+    def env_options(self, song: Song | None = None) -> dict[str, Any]:
+        options = super().env_options(song)
+        if self.physics is not None:
+            options["physics"] = self.physics
+        return options
+
+    def reset(self, env: gym.Env, seed: int | None = None) -> None:
+        super().reset(env, seed)
+        handle = control_handle(env)
+        if self.fingerprint is not None and goal_fingerprint(handle.goal) != self.fingerprint:
+            raise ValueError(
+                "this correction table was practised on another piece (or the same piece "
+                "with another lead-in or fingering); practise this one with "
+                "`pianist train SONG --preset practice`"
+            )
+        dims = handle.model.nu + 1  # the actuators and the pedal
+        if self.table.shape[0] and self.table.shape[1] != dims:
+            raise ValueError(
+                f"the table corrects {self.table.shape[1]} action values, this environment "
+                f"has {dims}"
+            )
+        self._main_data = handle.data
+        self.raw_actions = {}
+
+    def act(self, observation: object = None) -> np.ndarray:
+        raw = super().act(observation)
+        t = self.handle.step_index
+        if self.handle.data is self._main_data:
+            # The episode's own step (not a look-ahead on a fork): what practice rewrites.
+            self.raw_actions[t] = raw
+        if t >= self.table.shape[0]:
+            return raw
+        return (raw + self.table[t]).clip(-1.0, 1.0).astype(np.float32)
+
+    def options_dict(self) -> dict[str, Any]:
+        return {"practice": {"steps": int(self.table.shape[0]), "physics": self.physics}}
+
+
+class _PassRefiner(Refiner):
+    """The refiner of one practice pass: its perturbations drawn from ``(seed, pass)``."""
+
+    def __init__(self, planner: CorrectedPlanner, options: RefineOptions, seed: list[int]):
+        super().__init__(planner, options)
+        self._seed = seed
+
+    def reset(self, env: gym.Env, seed: int | None = None) -> None:
+        super().reset(env, seed)
+        self.rng = np.random.default_rng(self._seed)
+
+
+@dataclass
+class PracticeResult:
+    """What :func:`practise` learned: the best ``table`` (T, A), its whole-piece ``f1`` and
+    the ``pass_index`` that made it (0: the planner alone), and one row per pass in
+    ``history`` (pass, f1, precision, recall, refined_share, seconds since the start)."""
+
+    table: np.ndarray
+    f1: float
+    pass_index: int
+    history: list[dict[str, Any]]
+    fingerprint: str
+
+
+def practise(
+    song: Song,
+    config: PracticeConfig | None = None,
+    *,
+    stop_after_s: float | None = None,
+    start: PracticeResult | None = None,
+    on_pass: Callable[[PracticeResult], None] | None = None,
+) -> PracticeResult:
+    """Practise ``song`` for ``config.passes`` passes or until ``stop_after_s`` seconds of
+    wall-clock time have passed (checked after each pass; the first always runs).
+
+    Args:
+        song: the piece, fingered (the planner needs a finger on every note).
+        config: passes, physics, seed and the refiner's look-ahead.
+        stop_after_s: wall-clock budget in seconds (None: only ``passes``).
+        start: a result to continue from (its table, best F1 and history; the passes go on
+            counting from its last).
+        on_pass: called with the result so far after every pass (to save it).
+
+    Returns:
+        The best table and the history of every pass.
+    """
+    from pianist.eval.session import play
+
+    config = config or PracticeConfig()
+    t0 = time.perf_counter()
+    if start is None:
+        baseline = play(song, IKPlanner(), physics=config.physics, seed=0)
+        goal = control_handle(baseline.env).goal
+        steps, dims = baseline.episode.actions.shape
+        result = PracticeResult(
+            table=np.zeros((steps, dims)),
+            f1=float(baseline.metrics["f1"]),
+            pass_index=0,
+            history=[_row(0, baseline.metrics, time.perf_counter() - t0, 0.0)],
+            fingerprint=goal_fingerprint(goal),
+        )
+        if on_pass is not None:
+            on_pass(result)
+    else:
+        result = start
+    elapsed0 = result.history[-1]["seconds"] if result.history else 0.0
+    first = result.history[-1]["pass"] + 1 if result.history else 1
+    for index in range(first, config.passes + 1):
+        planner = CorrectedPlanner(result.table, fingerprint=result.fingerprint)
+        refiner = _PassRefiner(planner, config.refine, [config.seed, index])
+        played = play(song, refiner, physics=config.physics, seed=0)
+        actions = np.asarray(played.episode.actions, dtype=np.float64)
+        raw = np.stack([planner.raw_actions[t] for t in range(actions.shape[0])])
+        # The correction that makes the planner's action the one played, exactly: float32
+        # actions differ by a float64-exact amount, and raw + it rounds back to the action.
+        table = actions - raw.astype(np.float64)
+        f1 = float(played.metrics["f1"])
+        seconds = elapsed0 + time.perf_counter() - t0
+        result.history.append(
+            _row(index, played.metrics, seconds, refiner.stats()["refined_share"])
+        )
+        if f1 > result.f1:
+            result.table, result.f1, result.pass_index = table, f1, index
+        if on_pass is not None:
+            on_pass(result)
+        if stop_after_s is not None and time.perf_counter() - t0 >= stop_after_s:
+            break
+    return result
+
+
+def _row(index: int, metrics: dict[str, Any], seconds: float, refined: float) -> dict[str, Any]:
+    return {
+        "pass": index,
+        "f1": float(metrics["f1"]),
+        "precision": float(metrics["precision"]),
+        "recall": float(metrics["recall"]),
+        "refined_share": refined,
+        "seconds": seconds,
+    }
+
+
+# ------------------------------------------------------------------------- run directories
+
+
+def save_practice(run_dir: str | Path, result: PracticeResult, config: PracticeConfig) -> None:
+    """Write the best table with every pass's row (``practice.npz``, what a resumed run reads)
+    and the rows again as ``log.jsonl`` (to read), each atomically: a run killed mid-write
+    keeps the previous ones."""
+    run_dir = Path(run_dir)
+    buffer = io.BytesIO()
+    np.savez(
+        buffer,
+        table=result.table,
+        fingerprint=np.array(result.fingerprint),
+        physics=np.array(config.physics),
+        f1=np.array(result.f1),
+        pass_index=np.array(result.pass_index),
+        history=np.array(json.dumps(result.history)),
+    )
+    write_bytes_atomic(buffer.getvalue(), run_dir / TABLE)
+    lines = "".join(json.dumps(row) + "\n" for row in result.history)
+    write_bytes_atomic(lines.encode(), run_dir / LOG)
+
+
+def write_practice_config(run_dir: str | Path, song: str, config: PracticeConfig) -> None:
+    """``config.json`` of a practice run: the song as given and the :class:`PracticeConfig`."""
+    data = {"kind": "practice", "song": song, **config.to_dict()}
+    write_json_atomic(data, Path(run_dir) / CONFIG)
+
+
+def is_practice_run(run_dir: str | Path) -> bool:
+    """Whether ``run_dir`` is a practice run (its config.json says so)."""
+    path = Path(run_dir) / CONFIG
+    try:
+        return json.loads(path.read_text()).get("kind") == "practice"
+    except (OSError, json.JSONDecodeError, AttributeError):
+        return False
+
+
+def load_practice(run_dir: str | Path) -> tuple[str, PracticeConfig, PracticeResult]:
+    """The song, configuration and best result so far of a practice run (to resume it).
+
+    Raises:
+        ValueError: the directory is not a readable practice run.
+    """
+    run_dir = Path(run_dir)
+    try:
+        data = json.loads((run_dir / CONFIG).read_text())
+        song = data.pop("song")
+        data.pop("kind")
+        config = PracticeConfig.from_dict(data)
+        with np.load(run_dir / TABLE, allow_pickle=False) as arrays:
+            result = PracticeResult(
+                table=arrays["table"],
+                f1=float(arrays["f1"]),
+                pass_index=int(arrays["pass_index"]),
+                history=json.loads(str(arrays["history"])),
+                fingerprint=str(arrays["fingerprint"]),
+            )
+    except (OSError, KeyError, ValueError, TypeError, json.JSONDecodeError) as exc:
+        raise ValueError(f"{run_dir} is not a readable practice run ({exc})") from None
+    return song, config, result

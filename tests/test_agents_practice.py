@@ -1,0 +1,133 @@
+"""Practice: a correction per step learned by replaying a piece with the refiner."""
+
+import json
+
+import numpy as np
+import pytest
+
+from pianist.agents.practice import (
+    CorrectedPlanner,
+    PracticeConfig,
+    goal_fingerprint,
+    load_practice,
+    practise,
+    save_practice,
+    write_practice_config,
+)
+from pianist.agents.specs import controller_from_spec
+from pianist.cli import main
+from pianist.control.planner import IKPlanner
+from pianist.control.refine import RefineOptions
+from pianist.env.handle import control_handle
+from pianist.eval.session import play
+from pianist.music import load_song
+from pianist.music.transforms import window
+
+# The opening of a chorale, where the planner alone lets keys flicker and strikes late, so
+# looking ahead has something to correct.
+SONG = window(load_song("bach-chorale-bwv66-6"), 0.0, 2.0)
+FAST = PracticeConfig(passes=2, physics="fast", refine=RefineOptions(candidates=4))
+
+
+@pytest.fixture(scope="module")
+def practised():
+    return practise(SONG, FAST)
+
+
+def test_a_zero_table_plays_the_planners_actions():
+    alone = play(SONG, IKPlanner(), physics="fast")
+    table = np.zeros_like(alone.episode.actions, dtype=np.float64)
+    corrected = play(SONG, CorrectedPlanner(table), physics="fast")
+    np.testing.assert_array_equal(alone.episode.actions, corrected.episode.actions)
+
+
+def test_practice_keeps_the_best_pass_and_its_table_replays_it_exactly(practised):
+    history = practised.history
+    assert [row["pass"] for row in history] == [0, 1, 2]
+    planner_f1 = play(SONG, IKPlanner(), physics="fast").metrics["f1"]
+    assert history[0]["f1"] == pytest.approx(planner_f1)  # pass 0 is the planner alone
+    assert practised.f1 == max(row["f1"] for row in history)
+    assert practised.f1 > planner_f1  # the look-ahead found something on this passage
+    assert history[practised.pass_index]["f1"] == practised.f1
+    # The table is a correction of the fingers (the refiner perturbs nothing else) ...
+    planner = IKPlanner()
+    replay = play(SONG, CorrectedPlanner(practised.table, physics="fast"), physics="fast")
+    assert replay.metrics["f1"] == practised.f1  # ... and replays the best pass exactly.
+    planner_dims = set(np.flatnonzero(np.abs(practised.table).max(axis=0) > 1e-6))
+    play(SONG, planner, physics="fast")
+    assert planner_dims and planner_dims <= set(planner.finger_action_dims().tolist())
+
+
+def test_a_table_is_refused_for_another_piece(practised):
+    other = window(load_song("bach-chorale-bwv66-6"), 2.0, 4.0)
+    planner = CorrectedPlanner(practised.table, fingerprint=practised.fingerprint)
+    with pytest.raises(ValueError, match="another piece"):
+        play(other, planner, physics="fast")
+    env_goal = control_handle(play(SONG, IKPlanner(), physics="fast").env).goal
+    assert goal_fingerprint(env_goal) == practised.fingerprint
+
+
+def test_a_resumed_run_goes_on_as_an_uninterrupted_one(tmp_path, practised):
+    one = practise(SONG, PracticeConfig(passes=1, physics="fast", refine=FAST.refine))
+    write_practice_config(tmp_path, "chorale", FAST)
+    save_practice(tmp_path, one, FAST)
+    song, config, start = load_practice(tmp_path)
+    assert (song, config) == ("chorale", FAST)
+    resumed = practise(SONG, config, start=start)
+    assert [r["f1"] for r in resumed.history] == [r["f1"] for r in practised.history]
+    np.testing.assert_array_equal(resumed.table, practised.table)
+    assert resumed.pass_index == practised.pass_index
+
+
+def test_bad_practice_settings_are_refused():
+    with pytest.raises(ValueError, match="at least 1 pass"):
+        PracticeConfig(passes=0)
+    with pytest.raises(ValueError, match="unknown physics"):
+        PracticeConfig(physics="slow")
+    with pytest.raises(ValueError, match=r"\(T, A\)"):
+        CorrectedPlanner(np.zeros(3))
+
+
+def test_train_practice_then_eval_and_play_it(tmp_path, capsys):
+    song = tmp_path / "song.mid"
+    from pianist.music.midi import write_midi
+
+    write_midi(window(load_song("twinkle-twinkle"), 0.0, 2.0), song)
+    run = tmp_path / "run"
+    args = ["train", str(song), "--preset", "practice", "--physics", "fast", "--passes", "1"]
+    assert main([*args, "--out", str(run), "--no-progress"]) == 0
+    log = [json.loads(line) for line in (run / "log.jsonl").read_text().splitlines()]
+    assert [row["pass"] for row in log] == [0, 1]
+    best = max(row["f1"] for row in log)
+    assert main(["eval", str(run), str(song)]) == 0
+    metrics = json.loads((run / "eval" / "metrics.json").read_text())
+    assert metrics["f1"] == pytest.approx(best)
+    assert metrics["preset"] == "practice" and metrics["physics"] == "fast"
+    assert isinstance(controller_from_spec(f"policy:{run}"), CorrectedPlanner)
+    # Resuming goes on from the last pass.
+    assert main(["train", "--resume", str(run), "--passes", "2", "--no-progress"]) == 0
+    log = [json.loads(line) for line in (run / "log.jsonl").read_text().splitlines()]
+    assert [row["pass"] for row in log] == [0, 1, 2]
+    capsys.readouterr()
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        (["--steps", "100"], "--steps does not apply"),
+        (["--passes", "0"], "--passes must be at least 1"),
+    ],
+)
+def test_train_practice_refuses_bad_options(tmp_path, capsys, extra, message):
+    args = ["train", "twinkle-twinkle", "--preset", "practice", "--out", str(tmp_path)]
+    code = main([*args, *extra])
+    assert code != 0
+    assert message in capsys.readouterr().err
+    assert not (tmp_path / "practice.npz").exists()
+
+
+def test_eval_of_a_practised_piece_refuses_another_song(tmp_path, capsys, practised):
+    write_practice_config(tmp_path, "chorale", FAST)
+    save_practice(tmp_path, practised, FAST)
+    assert main(["eval", str(tmp_path), "twinkle-twinkle", "--out", str(tmp_path / "e")]) != 0
+    assert "another piece" in capsys.readouterr().err
