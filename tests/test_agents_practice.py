@@ -1,5 +1,6 @@
 """Practice: a correction per step learned by replaying a piece with the refiner."""
 
+import dataclasses
 import json
 
 import numpy as np
@@ -26,7 +27,7 @@ from pianist.music.transforms import window
 # The opening of a chorale, where the planner alone lets keys flicker and strikes late, so
 # looking ahead has something to correct.
 SONG = window(load_song("bach-chorale-bwv66-6"), 0.0, 2.0)
-FAST = PracticeConfig(passes=2, physics="fast", refine=RefineOptions(candidates=4))
+FAST = PracticeConfig(passes=2, physics="fast", schedule=(RefineOptions(candidates=4),))
 
 
 @pytest.fixture(scope="module")
@@ -68,7 +69,7 @@ def test_a_table_is_refused_for_another_piece(practised):
 
 
 def test_a_resumed_run_goes_on_as_an_uninterrupted_one(tmp_path, practised):
-    one = practise(SONG, PracticeConfig(passes=1, physics="fast", refine=FAST.refine))
+    one = practise(SONG, dataclasses.replace(FAST, passes=1))
     write_practice_config(tmp_path, "chorale", FAST)
     save_practice(tmp_path, one, FAST)
     song, config, start = load_practice(tmp_path)
@@ -84,6 +85,10 @@ def test_bad_practice_settings_are_refused():
         PracticeConfig(passes=0)
     with pytest.raises(ValueError, match="unknown physics"):
         PracticeConfig(physics="slow")
+    with pytest.raises(ValueError, match="at least 1 worker"):
+        PracticeConfig(workers=0)
+    with pytest.raises(ValueError, match="schedule"):
+        PracticeConfig(schedule=())
     with pytest.raises(ValueError, match=r"\(T, A\)"):
         CorrectedPlanner(np.zeros(3))
 
@@ -131,3 +136,17 @@ def test_eval_of_a_practised_piece_refuses_another_song(tmp_path, capsys, practi
     save_practice(tmp_path, practised, FAST)
     assert main(["eval", str(tmp_path), "twinkle-twinkle", "--out", str(tmp_path / "e")]) != 0
     assert "another piece" in capsys.readouterr().err
+
+
+def test_two_workers_play_two_look_aheads_and_keep_the_better(practised):
+    config = dataclasses.replace(
+        FAST, passes=1, workers=2, schedule=(RefineOptions(candidates=4), RefineOptions(sigma=0.3))
+    )
+    assert [config.options(1, w).sigma for w in (0, 1)] == [0.15, 0.3]
+    assert config.options(2, 0).sigma == 0.15  # the schedule cycles
+    result = practise(SONG, config)
+    row = result.history[1]
+    assert len(row["worker_f1"]) == 2 and row["f1"] == max(row["worker_f1"])
+    # Worker 0 played what a one-worker pass with the same look-ahead plays.
+    alone = practise(SONG, dataclasses.replace(config, workers=1, schedule=config.schedule[:1]))
+    assert row["worker_f1"][0] == alone.history[1]["f1"]

@@ -10,7 +10,9 @@ around the corrected planner: at every step it looks ahead with perturbations of
 part of the action, plays the best, and the action played becomes the step's new correction.
 The unperturbed candidate is the last pass's own action, so each pass starts from the
 performance the previous one reached and only moves where looking ahead finds better; the
-refiner's samples differ from pass to pass. The pass's F1 is the F1 of its table replayed (the
+passes take the look-aheads of a schedule in turn (:data:`SCHEDULE`) with fresh samples. With
+``workers`` > 1 that many passes start from the same table at once, each with the next
+look-ahead, and the best one goes on. The pass's F1 is the F1 of its table replayed (the
 table reproduces the played actions exactly, and the episode is deterministic), and the table
 of the best pass is kept.
 
@@ -28,7 +30,7 @@ import io
 import json
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -59,23 +61,42 @@ def goal_fingerprint(goal: GoalFrames) -> str:
     return digest.hexdigest()[:16]
 
 
+SCHEDULE: tuple[RefineOptions, ...] = (
+    RefineOptions(),
+    RefineOptions(sigma=0.3),
+    RefineOptions(horizon_steps=8),
+    RefineOptions(horizon_steps=8, sigma=0.3, candidates=12),
+)
+"""The look-aheads the passes take in turn. Once one look-ahead finds little more to change
+(a pass refining under a fifth of the steps), another one finds other changes: a longer
+horizon sees a late strike's cost, a wider perturbation reaches a finger that is further off."""
+
+
 @dataclass(frozen=True)
 class PracticeConfig:
     """How a piece is practised."""
 
     passes: int = 20
-    """Most practice passes (each plays the whole piece once with the refiner)."""
+    """Most practice passes (each plays the whole piece once with the refiner per worker)."""
     physics: str = "faithful"
     """The physics preset practised in, and played in afterwards: a table is a correction of
     that physics' trajectories and does not transfer to the other preset."""
     seed: int = 0
-    """Seeds the refiner's perturbations (pass p draws from ``(seed, p)``)."""
-    refine: RefineOptions = field(default_factory=RefineOptions)
-    """The look-ahead of every pass."""
+    """Seeds the refiner's perturbations (pass p, worker w draws from ``(seed, p, w)``)."""
+    workers: int = 1
+    """Passes played at once from the same table, each in its own process with the next
+    look-ahead of the schedule; the best becomes the next table (2 on two cores)."""
+    schedule: tuple[RefineOptions, ...] = SCHEDULE
+    """The look-aheads, taken in turn: pass p, worker w uses the
+    ``((p - 1) * workers + w)``-th (cycling)."""
 
     def __post_init__(self) -> None:
         if self.passes < 1:
             raise ValueError(f"practice needs at least 1 pass, not {self.passes}")
+        if self.workers < 1:
+            raise ValueError(f"practice needs at least 1 worker, not {self.workers}")
+        if not self.schedule:
+            raise ValueError("practice needs at least one look-ahead in its schedule")
         from pianist.sim.scene import PHYSICS_PRESETS
 
         if self.physics not in PHYSICS_PRESETS:
@@ -83,13 +104,17 @@ class PracticeConfig:
                 f"unknown physics {self.physics!r}; use one of {', '.join(PHYSICS_PRESETS)}"
             )
 
+    def options(self, index: int, worker: int) -> RefineOptions:
+        """The look-ahead of pass ``index`` (from 1) in ``worker`` (from 0)."""
+        return self.schedule[((index - 1) * self.workers + worker) % len(self.schedule)]
+
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> PracticeConfig:
         data = dict(data)
-        data["refine"] = RefineOptions(**data.get("refine", {}))
+        data["schedule"] = tuple(RefineOptions(**o) for o in data.get("schedule", ()))
         return cls(**data)
 
 
@@ -176,7 +201,8 @@ class CorrectedPlanner(IKPlanner):
 
 
 class _PassRefiner(Refiner):
-    """The refiner of one practice pass: its perturbations drawn from ``(seed, pass)``."""
+    """The refiner of one practice pass: its perturbations drawn from ``seed``, whatever the
+    episode's seed."""
 
     def __init__(self, planner: CorrectedPlanner, options: RefineOptions, seed: list[int]):
         super().__init__(planner, options)
@@ -213,7 +239,7 @@ def practise(
 
     Args:
         song: the piece, fingered (the planner needs a finger on every note).
-        config: passes, physics, seed and the refiner's look-ahead.
+        config: passes, physics, seed, workers and the refiner's look-aheads.
         stop_after_s: wall-clock budget in seconds (None: only ``passes``).
         start: a result to continue from (its table, best F1 and history; the passes go on
             counting from its last).
@@ -243,27 +269,76 @@ def practise(
         result = start
     elapsed0 = result.history[-1]["seconds"] if result.history else 0.0
     first = result.history[-1]["pass"] + 1 if result.history else 1
-    for index in range(first, config.passes + 1):
-        planner = CorrectedPlanner(result.table, fingerprint=result.fingerprint)
-        refiner = _PassRefiner(planner, config.refine, [config.seed, index])
-        played = play(song, refiner, physics=config.physics, seed=0)
-        actions = np.asarray(played.episode.actions, dtype=np.float64)
-        raw = np.stack([planner.raw_actions[t] for t in range(actions.shape[0])])
-        # The correction that makes the planner's action the one played, exactly: float32
-        # actions differ by a float64-exact amount, and raw + it rounds back to the action.
-        table = actions - raw.astype(np.float64)
-        f1 = float(played.metrics["f1"])
-        seconds = elapsed0 + time.perf_counter() - t0
-        result.history.append(
-            _row(index, played.metrics, seconds, refiner.stats()["refined_share"])
-        )
-        if f1 > result.f1:
-            result.table, result.f1, result.pass_index = table, f1, index
-        if on_pass is not None:
-            on_pass(result)
-        if stop_after_s is not None and time.perf_counter() - t0 >= stop_after_s:
-            break
+    pool = _pool(config.workers)
+    try:
+        for index in range(first, config.passes + 1):
+            jobs = [
+                (
+                    song,
+                    result.table,
+                    result.fingerprint,
+                    config.physics,
+                    config.options(index, w),
+                    [config.seed, index, w],
+                )
+                for w in range(config.workers)
+            ]
+            if pool is None:
+                outcomes = [_practice_pass(*job) for job in jobs]
+            else:
+                outcomes = list(pool.map(_practice_pass, *zip(*jobs, strict=True)))
+            # The best worker's pass (the first of equals).
+            worker = max(range(len(outcomes)), key=lambda w: (outcomes[w][1]["f1"], -w))
+            table, metrics, refined = outcomes[worker]
+            seconds = elapsed0 + time.perf_counter() - t0
+            row = _row(index, metrics, seconds, refined)
+            row["worker"], row["worker_f1"] = worker, [o[1]["f1"] for o in outcomes]
+            result.history.append(row)
+            if metrics["f1"] > result.f1:
+                result.table, result.f1, result.pass_index = table, metrics["f1"], index
+            if on_pass is not None:
+                on_pass(result)
+            if stop_after_s is not None and time.perf_counter() - t0 >= stop_after_s:
+                break
+    finally:
+        if pool is not None:
+            pool.shutdown()
     return result
+
+
+def _pool(workers: int) -> Any:
+    """Spawned worker processes for ``workers`` > 1 (None: play the passes here)."""
+    if workers == 1:
+        return None
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    return ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"))
+
+
+def _practice_pass(
+    song: Song,
+    table: np.ndarray,
+    fingerprint: str,
+    physics: str,
+    options: RefineOptions,
+    seed: list[int],
+) -> tuple[np.ndarray, dict[str, float], float]:
+    """One pass: the piece played by the refiner around the planner corrected by ``table``.
+    Returns the table that replays that performance, its metrics (f1, precision, recall) and
+    the share of steps the look-ahead changed."""
+    from pianist.eval.session import play
+
+    planner = CorrectedPlanner(table, fingerprint=fingerprint)
+    refiner = _PassRefiner(planner, options, seed)
+    played = play(song, refiner, physics=physics, seed=0)
+    actions = np.asarray(played.episode.actions, dtype=np.float64)
+    raw = np.stack([planner.raw_actions[t] for t in range(actions.shape[0])])
+    # The correction that makes the planner's action the one played, exactly: float32
+    # actions differ by a float64-exact amount, and raw + it rounds back to the action.
+    new_table = actions - raw.astype(np.float64)
+    metrics = {name: float(played.metrics[name]) for name in ("f1", "precision", "recall")}
+    return new_table, metrics, refiner.stats()["refined_share"]
 
 
 def _row(index: int, metrics: dict[str, Any], seconds: float, refined: float) -> dict[str, Any]:

@@ -53,6 +53,8 @@ class Train:
         tyro.conf.arg(help_behavior_hint="(practice: default faithful)"),
     ] = None
     """--preset practice: the physics preset practised in (the piece is played in it later)."""
+    workers: Annotated[int | None, tyro.conf.arg(help_behavior_hint="(practice: default 2)")] = None
+    """--preset practice: passes played at once, one per process (2 on two cores)."""
     progress: bool = True
     """Show a progress bar with steps/s and the latest F1 (on a terminal only: a redrawn bar
     would write thousands of lines into a pipe or log file)."""
@@ -69,8 +71,8 @@ class Train:
         if self._practice():
             self._run_practice(budget_s)
             return
-        if self.passes is not None or self.physics is not None:
-            raise CliError("--passes and --physics apply to --preset practice only")
+        if self.passes is not None or self.physics is not None or self.workers is not None:
+            raise CliError("--passes, --physics and --workers apply to --preset practice only")
         _require_jax()
         show_bar = self.progress and sys.stderr.isatty()
         if self.resume is not None:
@@ -134,6 +136,8 @@ class Train:
             raise CliError("--steps does not apply to --preset practice; use --passes or --minutes")
         if self.passes is not None and self.passes < 1:
             raise CliError(f"--passes must be at least 1, not {self.passes}")
+        if self.workers is not None and self.workers < 1:
+            raise CliError(f"--workers must be at least 1, not {self.workers}")
         start = None
         if self.resume is not None:
             run_dir = self.resume
@@ -146,9 +150,11 @@ class Train:
             if self.song is None:
                 raise CliError("give a SONG to train on, or --resume DIR")
             run_dir, song_spec = self.out, self.song
-            config = PracticeConfig(physics=self.physics or "faithful")
+            config = PracticeConfig(physics=self.physics or "faithful", workers=2)
         if self.passes is not None:
             config = replace(config, passes=self.passes)
+        if self.workers is not None:
+            config = replace(config, workers=self.workers)
         song = load_song(song_spec, fingering="auto")
         if song.fingering_coverage < 1.0:
             raise CliError(f"{song_spec}: practice needs a finger on every note")
