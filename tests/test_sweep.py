@@ -362,6 +362,28 @@ def test_train_and_eval_cells(tmp_path):
     assert metrics["f1"] == row["f1"] and metrics["physics"] == "fast"
 
 
+def test_practice_train_and_eval_cells(tmp_path):
+    """A train cell of the practice preset keeps its table in run/, and an eval cell plays it
+    back with the F1 the practice reached."""
+    out = tmp_path / "train"
+    (cell,) = expand("train", [(SONG, "debug")], ["practice"], [None], [0])
+    # A budget this short stops after the first pass.
+    options = SweepOptions(minutes=1e-4).as_dict()
+    record = execute_cell(cell.as_dict(), options, str(out))
+    assert record["status"] == "ok", record["error"]
+    (row,) = collect_rows(out, [cell])
+    assert row["passes"] == 1 and row["best_f1"] >= row["planner_f1"]
+    run = out / CELLS_DIR / cell.id / "run"
+    assert json.loads((run / "config.json").read_text())["kind"] == "practice"
+
+    out = tmp_path / "eval"
+    (cell,) = expand("eval", [(SONG, "debug")], [str(run)], [None], [0])
+    record = execute_cell(cell.as_dict(), SweepOptions().as_dict(), str(out))
+    assert record["status"] == "ok", record["error"]
+    (evaluated,) = collect_rows(out, [cell])
+    assert evaluated["preset"] == "practice" and evaluated["f1"] == row["best_f1"]
+
+
 def test_dataset_cells_assemble_into_one_minari_dataset(tmp_path, monkeypatch, capsys):
     """The dataset task, run as a Ray worker runs a cell: one episode per seed, the first
     noiseless; the finished cells then make one Minari dataset with `pianist dataset

@@ -7,7 +7,9 @@ A task turns a :class:`~pianist.sweep.grid.Cell` into files in a folder and a di
   :func:`pianist.media.results.write_result` (metrics.json, performance.mid, actions.npy,
   pianoroll.png, and the audio with ``audio=True``);
 - ``train``: :func:`pianist.agents.train` with the cell's preset and seed, the run kept in
-  ``run/`` (a worker killed mid-run resumes from the run's newest checkpoint);
+  ``run/`` (a worker killed mid-run resumes from the run's newest checkpoint); the preset
+  ``practice`` runs :func:`pianist.agents.practice.practise` instead (one worker, the
+  default passes, ``minutes`` as its budget);
 - ``eval``: a trained run's policy (the variant is its folder) played as ``pianist eval`` does;
 - ``dataset``: one demonstration episode of the cell's song with its controller, recorded by
   :func:`pianist.data.record.record_episode` into ``episode/`` (every seed but the grid's
@@ -49,6 +51,8 @@ CELLS_DIR = "cells"
 RUNNING_DIR = "running"
 WORK_DIR = "work"
 TRAIN_RUN = "run"
+#: The train task's variant that practises the piece (:mod:`pianist.agents.practice`).
+PRACTICE = "practice"
 
 OK = "ok"
 FAILED = "failed"
@@ -131,14 +135,17 @@ def _run_play(cell: Cell, options: SweepOptions, folder: Path, work: Path) -> di
 def _check_preset(preset: str) -> None:
     from pianist.agents import PRESETS
 
-    if preset not in PRESETS:
-        raise ValueError(f"unknown preset {preset!r}; choose from {', '.join(PRESETS)}")
+    if preset not in PRESETS and preset != PRACTICE:
+        choices = ", ".join([*PRESETS, PRACTICE])
+        raise ValueError(f"unknown preset {preset!r}; choose from {choices}")
 
 
 def _run_train(cell: Cell, options: SweepOptions, folder: Path, work: Path) -> dict[str, Any]:
     from pianist.agents import get_preset, train
     from pianist.agents.rundir import holds_run
 
+    if cell.variant == PRACTICE:
+        return _run_practice(cell, options, folder, work)
     # The run trains in ``work``, outside the cell's temporary folder, so that a killed
     # worker's retry resumes from its newest checkpoint; it moves into the cell's folder once
     # finished.
@@ -165,27 +172,76 @@ def _run_train(cell: Cell, options: SweepOptions, folder: Path, work: Path) -> d
     return metrics
 
 
+def _run_practice(cell: Cell, options: SweepOptions, folder: Path, work: Path) -> dict[str, Any]:
+    """A ``practice`` train cell: :func:`pianist.agents.practice.practise` on one core (the
+    cell's seed seeds the look-ahead), saved after every pass in ``work`` so that a killed
+    worker's retry goes on from its last pass."""
+    from pianist.agents.practice import (
+        TABLE,
+        PracticeConfig,
+        load_practice,
+        practise,
+        save_practice,
+        write_practice_config,
+    )
+    from pianist.music import load_song
+
+    work.mkdir(parents=True, exist_ok=True)
+    start = None
+    if (work / TABLE).is_file():
+        _, config, start = load_practice(work)
+    else:
+        config = PracticeConfig(seed=cell.seed)
+        write_practice_config(work, cell.song, config)
+    song = load_song(cell.song, fingering=cast("Fingering", options.fingering))
+    budget_s = None if options.minutes is None else 60.0 * options.minutes
+    started = time.perf_counter()
+    result = practise(
+        song,
+        config,
+        stop_after_s=budget_s,
+        start=start,
+        on_pass=lambda r: save_practice(work, r, config),
+    )
+    os.replace(work, folder / TRAIN_RUN)
+    return {
+        "f1": result.f1,
+        "best_f1": result.f1,
+        "best_pass": result.pass_index,
+        "passes": result.history[-1]["pass"],
+        "planner_f1": result.history[0]["f1"],
+        "wall_seconds": time.perf_counter() - started,
+    }
+
+
 def _check_run(run_dir: str) -> None:
+    from pianist.agents.practice import is_practice_run
     from pianist.agents.rundir import holds_run
 
-    if not holds_run(run_dir):
+    if not holds_run(run_dir) and not is_practice_run(run_dir):
         raise ValueError(f"{run_dir} holds no training run (config.json and checkpoints/)")
 
 
 def _run_eval(cell: Cell, options: SweepOptions, folder: Path, work: Path) -> dict[str, Any]:
     from pianist.agents import PolicyController
+    from pianist.agents.practice import CorrectedPlanner, is_practice_run
     from pianist.eval.session import play
     from pianist.media.results import MediaOptions, write_result
 
-    controller = PolicyController(cell.variant)
     fingering = cast("Fingering", options.fingering)
-    result = play(cell.song, controller, fingering=fingering, seed=cell.seed)
-    extra = {
-        "song": cell.song,
-        "run": cell.variant,
-        "checkpoint_step": controller.step,
-        "preset": controller.config.preset,
-    }
+    if is_practice_run(cell.variant):
+        practised = CorrectedPlanner.load(cell.variant)
+        result = play(cell.song, practised, fingering=fingering, seed=cell.seed)
+        extra: dict[str, Any] = {"song": cell.song, "run": cell.variant, "preset": PRACTICE}
+    else:
+        controller = PolicyController(cell.variant)
+        result = play(cell.song, controller, fingering=fingering, seed=cell.seed)
+        extra = {
+            "song": cell.song,
+            "run": cell.variant,
+            "checkpoint_step": controller.step,
+            "preset": controller.config.preset,
+        }
     write_result(result, folder, MediaOptions(audio=False), extra_metrics=extra)
     return {**result.metrics, **extra}
 
