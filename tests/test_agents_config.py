@@ -125,11 +125,13 @@ def test_a_task_can_give_the_hands_a_lead_in():
     assert restored.task.initial_buffer_s == 0.5
 
 
-def test_train_and_sweep_default_to_the_residual_preset():
+def test_train_and_sweep_default_to_practice():
     from pianist.agents.config import DEFAULT_PRESET
     from pianist.cli.train import Train
     from pianist.sweep.tasks import TASKS
 
-    assert DEFAULT_PRESET == "residual-anchored" and get_preset(DEFAULT_PRESET).task.residual
+    assert DEFAULT_PRESET == "practice"
     assert Train().preset == DEFAULT_PRESET
     assert TASKS["train"].default_variant == DEFAULT_PRESET
+    with pytest.raises(ValueError, match="not a soft actor-critic preset"):
+        get_preset(DEFAULT_PRESET)

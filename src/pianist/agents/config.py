@@ -309,14 +309,25 @@ PRESETS["residual-windows"] = dataclasses.replace(
     PRESETS["residual-anchored"], preset="residual-windows", windows=True
 )
 
+#: The preset of ``pianist train`` and ``pianist sweep --task train`` that practises one piece
+#: (:mod:`pianist.agents.practice`): a correction per step learned by replaying the piece with
+#: the refiner's look-ahead, not a soft actor-critic agent (it has no :class:`TrainConfig`).
+PRACTICE_PRESET = "practice"
+
 #: The preset ``pianist train`` and ``pianist sweep --task train`` use unless told: the best
-#: measured per wall-clock minute on a real piece (it starts as the planner and learns a
-#: correction; docs/training.md). ``droq-paper``, the paper's recipe, needs millions of steps.
-DEFAULT_PRESET = "residual-anchored"
+#: measured per wall-clock minute on real pieces (docs/training.md: practice took four real
+#: pieces from 0.739 to 0.831 mean F1 in 8 minutes; ``residual-anchored``, the best agent,
+#: moved K545 by 0.01 in 10). ``droq-paper``, the paper's recipe, needs millions of steps.
+DEFAULT_PRESET = PRACTICE_PRESET
 
 
 def get_preset(name: str, **overrides: Any) -> TrainConfig:
     """The preset ``name`` with top-level fields replaced by ``overrides``."""
+    if name == PRACTICE_PRESET:
+        raise ValueError(
+            "practice is not a soft actor-critic preset: run it with `pianist train SONG "
+            "--preset practice` or pianist.agents.practice.practise"
+        )
     if name not in PRESETS:
         raise ValueError(f"unknown preset {name!r}; choose from {', '.join(PRESETS)}")
     try:

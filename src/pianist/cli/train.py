@@ -10,7 +10,7 @@ from typing import Annotated, Any, Literal
 
 import tyro
 
-from pianist.agents.config import DEFAULT_PRESET
+from pianist.agents.config import DEFAULT_PRESET, PRACTICE_PRESET
 from pianist.cli.common import CliError, SongArg
 from pianist.cli.common import out as _out
 from pianist.cli.common import prepare_dir as _prepare_dir
@@ -19,7 +19,8 @@ from pianist.cli.common import require_jax as _require_jax
 
 @dataclass(frozen=True)
 class Train:
-    """Train an agent on a song (SAC/DroQ in JAX): log, checkpoints and config go to --out."""
+    """Learn to play a song: practise it (the default), or train a SAC/DroQ agent (JAX) with
+    --preset; the log, checkpoints or table and the config go to --out."""
 
     song: tyro.conf.Positional[
         Annotated[
@@ -29,11 +30,11 @@ class Train:
     ] = None
     """A built-in song name, a MIDI file or a PIG file."""
     preset: str = DEFAULT_PRESET
-    """residual-anchored (a correction learned on top of the planner), practice (a
-    correction per step learned by replaying the piece with the refiner's look-ahead: no
-    network, no JAX; the best measured per minute on real pieces), fast-small (from
-    scratch: Twinkle in minutes), droq-paper (the paper's recipe: millions of steps),
-    droq-paper-pipelined, sac, redq, fast, fast-utd2, residual, residual-windows."""
+    """practice (a correction per step learned by replaying the piece with the refiner's
+    look-ahead: no network, no JAX; the best measured per minute on real pieces),
+    residual-anchored (a soft actor-critic correction learned on top of the planner),
+    fast-small (from scratch: Twinkle in minutes), droq-paper (the paper's recipe: millions
+    of steps), droq-paper-pipelined, sac, redq, fast, fast-utd2, residual, residual-windows."""
     steps: Annotated[
         int | None,
         tyro.conf.arg(help_behavior_hint="(default: 1000000; when resuming, the run's own)"),
@@ -118,7 +119,7 @@ class Train:
 
         if self.resume is not None:
             return is_practice_run(self.resume)
-        return self.preset == "practice"
+        return self.preset == PRACTICE_PRESET
 
     def _run_practice(self, budget_s: float | None) -> None:
         from dataclasses import replace

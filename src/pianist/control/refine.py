@@ -53,6 +53,10 @@ class RefineOptions:
     sigma: float = 0.15
     """Standard deviation of each finger joint's perturbation, in action units ([-1, 1] spans
     the joint's range)."""
+    arm_sigma: float = 0.0
+    """Standard deviation of the perturbation of each forearm's slide along the keyboard
+    (action units; 0: the forearms are left to the planner). A hand held a little longer
+    over a held key, or moved a little earlier, is a change the fingers alone cannot make."""
     keep_previous: bool = True
     """Try the perturbation chosen at the previous step again (in place of one random
     candidate): a finger that needed more push usually needs it for a few steps."""
@@ -71,10 +75,16 @@ class RefineOptions:
     fingers at once; combined, each finger chooses from all of them."""
 
     def __post_init__(self) -> None:
-        if self.candidates < 0 or self.horizon_steps < 1 or not self.sigma >= 0:
+        if (
+            self.candidates < 0
+            or self.horizon_steps < 1
+            or not self.sigma >= 0
+            or not self.arm_sigma >= 0
+        ):
             raise ValueError(
-                "refine needs candidates >= 0, horizon_steps >= 1 and sigma >= 0, not "
-                f"{self.candidates}, {self.horizon_steps}, {self.sigma}"
+                "refine needs candidates >= 0, horizon_steps >= 1, sigma >= 0 and arm_sigma "
+                f">= 0, not {self.candidates}, {self.horizon_steps}, {self.sigma}, "
+                f"{self.arm_sigma}"
             )
 
 
@@ -121,6 +131,7 @@ class Refiner(BaseController):
         self.ahead_handle = control_handle(self.ahead)
         self.rng = np.random.default_rng(0 if seed is None else seed)
         self.dims = self.planner.finger_action_dims()
+        self.arm_dims = np.array([hand.tx_actuator for hand in self.planner.hands])
         # Each finger's (0-9) action dimensions and fingertip site, for the per-finger choice.
         hands = self.planner.hands
         self.finger_dims = {
@@ -146,6 +157,9 @@ class Refiner(BaseController):
         state = self.handle.snapshot()
         offsets = np.zeros((o.candidates + 1, proposal.shape[0]), dtype=np.float32)
         offsets[1:, self.dims] = self.rng.normal(0.0, o.sigma, (o.candidates, self.dims.size))
+        if o.arm_sigma > 0:
+            arm = self.rng.normal(0.0, o.arm_sigma, (o.candidates, self.arm_dims.size))
+            offsets[1:, self.arm_dims] = arm
         if o.keep_previous and self._previous is not None:
             offsets[1] = self._previous
         costs: list[float] = []

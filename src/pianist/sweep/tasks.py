@@ -38,6 +38,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, cast
 
 from pianist.agents.config import DEFAULT_PRESET
+from pianist.agents.config import PRACTICE_PRESET as PRACTICE
 from pianist.files import atomic_dir, write_json_atomic
 from pianist.sweep.grid import Cell
 
@@ -51,8 +52,6 @@ CELLS_DIR = "cells"
 RUNNING_DIR = "running"
 WORK_DIR = "work"
 TRAIN_RUN = "run"
-#: The train task's variant that practises the piece (:mod:`pianist.agents.practice`).
-PRACTICE = "practice"
 
 OK = "ok"
 FAILED = "failed"
