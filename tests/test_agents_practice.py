@@ -150,3 +150,19 @@ def test_two_workers_play_two_look_aheads_and_keep_the_better(practised):
     # Worker 0 played what a one-worker pass with the same look-ahead plays.
     alone = practise(SONG, dataclasses.replace(config, workers=1, schedule=config.schedule[:1]))
     assert row["worker_f1"][0] == alone.history[1]["f1"]
+
+
+def test_the_look_ahead_can_nudge_the_forearms_and_nothing_else_besides_the_fingers():
+    config = dataclasses.replace(
+        FAST, passes=1, schedule=(RefineOptions(candidates=4, arm_sigma=0.2),)
+    )
+    result = practise(SONG, config)
+    planner = IKPlanner()
+    play(SONG, planner, physics="fast")
+    arms = {int(hand.tx_actuator) for hand in planner.hands}
+    fingers = set(planner.finger_action_dims().tolist())
+    changed = set(np.flatnonzero(np.abs(result.table).max(axis=0) > 1e-6).tolist())
+    assert changed & arms  # a nudged slide was played somewhere
+    assert changed <= fingers | arms
+    with pytest.raises(ValueError, match="arm_sigma"):
+        RefineOptions(arm_sigma=-0.1)

@@ -1,10 +1,11 @@
 """Refinement with the physics: the planner's actions, improved by looking ahead.
 
 At every step the planner (:class:`pianist.control.planner.IKPlanner`) proposes its action.
-The refiner then tries ``candidates`` random perturbations of the fingers' part of it, each
-held for ``horizon_steps`` steps while the planner goes on acting in closed loop, on a fork
-of the environment restored to the current state for every candidate (the full physics:
-:meth:`pianist.env.PianoEnv.fork` and :meth:`~pianist.env.PianoEnv.restore`). It plays the
+The refiner then tries ``candidates`` random perturbations of the fingers' part of it (with
+``arm_sigma``, of the forearms' slides too), each held for ``horizon_steps`` steps while
+the planner goes on acting in closed loop, on a fork of the environment restored to the
+current state for every candidate (the full physics: :meth:`pianist.env.PianoEnv.fork` and
+:meth:`~pianist.env.PianoEnv.restore`). It plays the
 proposal plus the perturbation whose look-ahead left the fewest due keys unsounded and
 sounded the fewest others; the perturbation chosen at one step is among the next step's
 candidates (a finger that needed more push usually needs it for a few steps). The
