@@ -7,7 +7,8 @@ that still reacts to where the hands are.
 
 A practice pass plays the whole piece with the refiner (:class:`pianist.control.refine.Refiner`)
 around the corrected planner: at every step it looks ahead with perturbations of the fingers'
-part of the action, plays the best, and the action played becomes the step's new correction.
+part of the action (and small ones of the forearms' slides), plays the best, and the action
+played becomes the step's new correction.
 The unperturbed candidate is the last pass's own action, so each pass starts from the
 performance the previous one reached and only moves where looking ahead finds better; the
 passes take the look-aheads of a schedule in turn (:data:`SCHEDULE`) with fresh samples. With
