@@ -38,6 +38,7 @@ from typing import TYPE_CHECKING, Any
 import gymnasium as gym
 import numpy as np
 
+from pianist.agents.rundir import CONFIG, LOG
 from pianist.control.planner import IKPlanner
 from pianist.control.refine import RefineOptions, Refiner
 from pianist.env.handle import control_handle
@@ -48,8 +49,6 @@ if TYPE_CHECKING:
 
 TABLE = "practice.npz"
 """The file of a practice run directory holding the best table and what it was learned on."""
-CONFIG = "config.json"
-LOG = "log.jsonl"
 
 
 def goal_fingerprint(goal: GoalFrames) -> str:

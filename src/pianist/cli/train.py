@@ -204,31 +204,24 @@ class Eval:
         from pianist.media.results import MediaOptions, check_output_folder, write_result
 
         out = self.out or self.run_dir / "eval"
+        controller: Any
+        extra: dict[str, Any] = {"song": self.song, "run": str(self.run_dir)}
         if is_practice_run(self.run_dir):
             if self.physics is not None:
                 raise CliError("a practised piece plays in the physics it was practised in")
-            practised = CorrectedPlanner.load(self.run_dir)
-            check_output_folder(out)
-            result = play(self.song, practised, seed=self.seed)
-            extra: dict[str, Any] = {
-                "song": self.song,
-                "run": str(self.run_dir),
-                "preset": "practice",
-                "trained_physics": practised.physics,
-            }
+            controller = CorrectedPlanner.load(self.run_dir)
+            extra.update(preset="practice", trained_physics=controller.physics)
             step = "practised"
         else:
             controller = PolicyController(self.run_dir, physics=self.physics)
-            check_output_folder(out)
-            result = play(self.song, controller, seed=self.seed)
-            extra = {
-                "song": self.song,
-                "run": str(self.run_dir),
-                "checkpoint_step": controller.step,
-                "preset": controller.config.preset,
-                "trained_physics": controller.config.task.physics,
-            }
+            extra.update(
+                checkpoint_step=controller.step,
+                preset=controller.config.preset,
+                trained_physics=controller.config.task.physics,
+            )
             step = f"policy at step {controller.step}"
+        check_output_folder(out)
+        result = play(self.song, controller, seed=self.seed)
         metrics = result.metrics
         write_result(result, out, MediaOptions(audio=False), extra_metrics=extra)
         _out(
