@@ -5,7 +5,11 @@ physics asked for (faithful by default, the one the issue scores on), with ``--w
 processes. Per song it records the planner's F1 (pass 0), the best F1 after 1, 5 and 10
 minutes and at the end, every pass (F1 against seconds), and how robust the learned table is:
 the mean F1 over ``--noise-episodes`` episodes with Gaussian action noise (std
-``--noise-std``) of the planner alone and of the planner with the table. The practised table
+``--noise-std``) of the planner alone and of the planner with the table. Beside them: the
+recall of the best pass against the share of due key-frames the planner's plan leaves
+playable (practice changes how the plan is played, not the plan, so this bounds it), and the
+environment steps the passes simulated per wall-clock second (the piece's and the
+look-aheads', all workers). The practised table
 replays its best pass exactly (deterministic physics), so its F1 needs no separate
 evaluation; the noisy episodes show how much of the gain survives a perturbed trajectory.
 
@@ -24,7 +28,7 @@ import numpy as np
 
 from pianist.agents.practice import CorrectedPlanner, PracticeConfig, practise
 from pianist.control.planner import IKPlanner
-from pianist.eval.session import play
+from pianist.eval.session import make_env, play
 from pianist.music import load_song
 
 
@@ -42,6 +46,28 @@ class _Noisy:
         action = self.inner.act(observation)
         noise = self.rng.normal(0.0, self.std, action.shape)
         return np.clip(action + noise, -1.0, 1.0).astype(np.float32)
+
+
+def _plan_ceiling(song, physics: str) -> float:
+    """The share of the piece's due key-frames that the planner's plan leaves playable (a
+    finger given, within its reach from the planned hand position, not during a shift).
+    Practice corrects how the plan is played, not the plan, so its recall stays about this."""
+    planner = IKPlanner()
+    env = make_env(song, planner, physics=physics)
+    env.reset(seed=0)
+    planner.reset(env, seed=0)
+    playable = sum(hand.playable_keyframes(planner) for hand in planner.hands)
+    return playable / max(int(planner.goal.keys.sum()), 1)
+
+
+def _env_steps_per_s(history: list[dict]) -> float:
+    """Environment steps simulated per wall-clock second over the passes after the first
+    (the planner's own pass simulates only the piece)."""
+    passes = [row for row in history if row["pass"] > 0]
+    if not passes:
+        return 0.0
+    seconds = passes[-1]["seconds"] - history[0]["seconds"]
+    return sum(row.get("env_steps", 0) for row in passes) / max(seconds, 1e-9)
 
 
 def _best_by(history: list[dict], seconds: float) -> float:
@@ -64,7 +90,8 @@ def main() -> None:
     results: dict[str, dict] = {}
     print(
         f"{'song':40s} {'planner':>8s} {'1 min':>7s} {'5 min':>7s} {'10 min':>7s} "
-        f"{'end':>7s} {'passes':>6s} {'noisy planner':>13s} {'noisy practised':>15s}"
+        f"{'end':>7s} {'passes':>6s} {'noisy planner':>13s} {'noisy practised':>15s} "
+        f"{'recall':>6s} {'playable':>8s} {'steps/s':>7s}"
     )
     for name in args.songs.split(","):
         song = load_song(name, fingering="auto")
@@ -87,6 +114,11 @@ def main() -> None:
             "wall_s": wall,
             "noisy_planner_f1": float(np.mean(noisy["planner"])),
             "noisy_practised_f1": float(np.mean(noisy["practised"])),
+            "best_recall": max(
+                (r for r in history if r["pass"] == result.pass_index), key=lambda r: r["f1"]
+            )["recall"],
+            "plan_playable_share": _plan_ceiling(song, args.physics),
+            "env_steps_per_s": _env_steps_per_s(history),
             "history": history,
         }
         results[name] = row
@@ -94,12 +126,21 @@ def main() -> None:
         print(
             f"{name:40s} {row['planner_f1']:8.3f} {by['60']:7.3f} {by['300']:7.3f} "
             f"{by['600']:7.3f} {result.f1:7.3f} {row['passes']:6d} "
-            f"{row['noisy_planner_f1']:13.3f} {row['noisy_practised_f1']:15.3f}",
+            f"{row['noisy_planner_f1']:13.3f} {row['noisy_practised_f1']:15.3f} "
+            f"{row['best_recall']:6.3f} {row['plan_playable_share']:8.3f} "
+            f"{row['env_steps_per_s']:7.0f}",
             flush=True,
         )
     mean = {
         key: float(np.mean([r[key] for r in results.values()]))
-        for key in ("planner_f1", "best_f1", "noisy_planner_f1", "noisy_practised_f1")
+        for key in (
+            "planner_f1",
+            "best_f1",
+            "noisy_planner_f1",
+            "noisy_practised_f1",
+            "plan_playable_share",
+            "env_steps_per_s",
+        )
     }
     print("mean: " + ", ".join(f"{k} {v:.3f}" for k, v in mean.items()))
     settings = {

@@ -50,6 +50,11 @@ def test_practice_keeps_the_best_pass_and_its_table_replays_it_exactly(practised
     assert practised.f1 == max(row["f1"] for row in history)
     assert practised.f1 > planner_f1  # the look-ahead found something on this passage
     assert history[practised.pass_index]["f1"] == practised.f1
+    # A pass simulates the piece once and every step's look-aheads (4 candidates, the
+    # combined one and the proposal, 4 steps each at most).
+    steps = practised.table.shape[0]
+    for row in history[1:]:
+        assert steps < row["env_steps"] <= steps * (1 + 6 * 4)
     # The table is a correction of the fingers (the refiner perturbs nothing else) ...
     planner = IKPlanner()
     replay = play(SONG, CorrectedPlanner(practised.table, physics="fast"), physics="fast")

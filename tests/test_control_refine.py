@@ -53,6 +53,10 @@ def test_looking_ahead_leaves_the_episode_and_the_planner_as_they_were():
         obs, *_ = env.step(action)
     assert env.unwrapped.step_index == 5
     assert refiner.stats()["refined_share"] >= 0.0
+    # Every step looked ahead at least once (3 steps) and at most 3 + 1 candidates + the
+    # combined one; the count is what the simulation ran on the fork.
+    assert 5 * 3 <= refiner.simulated_steps <= 5 * 5 * 3
+    assert refiner.stats()["lookahead_steps_per_step"] == refiner.simulated_steps / 5
 
 
 def test_refining_plays_a_chorale_passage_better_than_the_planner():

@@ -220,7 +220,9 @@ class _PassRefiner(Refiner):
 class PracticeResult:
     """What :func:`practise` learned: the best ``table`` (T, A), its whole-piece ``f1`` and
     the ``pass_index`` that made it (0: the planner alone), and one row per pass in
-    ``history`` (pass, f1, precision, recall, refined_share, seconds since the start)."""
+    ``history`` (pass, f1, precision, recall, refined_share, seconds since the start, and
+    from pass 1 the worker kept, every worker's f1 and ``env_steps``: the environment steps
+    all the workers simulated, look-aheads included)."""
 
     table: np.ndarray
     f1: float
@@ -296,6 +298,7 @@ def practise(
             seconds = elapsed0 + time.perf_counter() - t0
             row = _row(index, metrics, seconds, refined)
             row["worker"], row["worker_f1"] = worker, [o[1]["f1"] for o in outcomes]
+            row["env_steps"] = int(sum(o[1]["env_steps"] for o in outcomes))
             result.history.append(row)
             if metrics["f1"] > result.f1:
                 result.table, result.f1, result.pass_index = table, metrics["f1"], index
@@ -341,6 +344,8 @@ def _practice_pass(
     # actions differ by a float64-exact amount, and raw + it rounds back to the action.
     new_table = actions - raw.astype(np.float64)
     metrics = {name: float(played.metrics[name]) for name in ("f1", "precision", "recall")}
+    # Every environment step the pass simulated: the piece's own and the look-aheads'.
+    metrics["env_steps"] = float(actions.shape[0] + refiner.simulated_steps)
     return new_table, metrics, refiner.stats()["refined_share"]
 
 
@@ -376,6 +381,29 @@ def save_practice(run_dir: str | Path, result: PracticeResult, config: PracticeC
     write_bytes_atomic(buffer.getvalue(), run_dir / TABLE)
     lines = "".join(json.dumps(row) + "\n" for row in result.history)
     write_bytes_atomic(lines.encode(), run_dir / LOG)
+
+
+def practise_in(
+    run_dir: str | Path,
+    song: Song,
+    song_spec: str,
+    config: PracticeConfig,
+    *,
+    start: PracticeResult | None = None,
+    stop_after_s: float | None = None,
+    on_pass: Callable[[PracticeResult], None] | None = None,
+) -> PracticeResult:
+    """:func:`practise` as a run in ``run_dir`` (an existing folder): its ``config.json``
+    (``song_spec``: the song as the user gave it) written first, the best table and the log
+    saved after every pass, so that :func:`load_practice` resumes it from its last pass."""
+    write_practice_config(run_dir, song_spec, config)
+
+    def saved(result: PracticeResult) -> None:
+        save_practice(run_dir, result, config)
+        if on_pass is not None:
+            on_pass(result)
+
+    return practise(song, config, stop_after_s=stop_after_s, start=start, on_pass=saved)
 
 
 def write_practice_config(run_dir: str | Path, song: str, config: PracticeConfig) -> None:

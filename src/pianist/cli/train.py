@@ -124,13 +124,7 @@ class Train:
     def _run_practice(self, budget_s: float | None) -> None:
         from dataclasses import replace
 
-        from pianist.agents.practice import (
-            PracticeConfig,
-            load_practice,
-            practise,
-            save_practice,
-            write_practice_config,
-        )
+        from pianist.agents.practice import PracticeConfig, load_practice, practise_in
         from pianist.music import load_song
 
         if self.steps is not None:
@@ -160,17 +154,17 @@ class Train:
         if song.fingering_coverage < 1.0:
             raise CliError(f"{song_spec}: practice needs a finger on every note")
         _prepare_dir(run_dir)
-        write_practice_config(run_dir, song_spec, config)
 
-        def saved(result: Any) -> None:
-            save_practice(run_dir, result, config)
+        def report(result: Any) -> None:
             row = result.history[-1]
             _out(
                 f"pass {row['pass']}: F1 {row['f1']:.3f} (best {result.f1:.3f}), "
                 f"{row['seconds']:.0f} s"
             )
 
-        result = practise(song, config, stop_after_s=budget_s, start=start, on_pass=saved)
+        result = practise_in(
+            run_dir, song, song_spec, config, start=start, stop_after_s=budget_s, on_pass=report
+        )
         _out(
             f"practised {result.history[-1]['pass']} passes: best F1 {result.f1:.3f} "
             f"(pass {result.pass_index}) -> {run_dir}"

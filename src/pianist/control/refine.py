@@ -147,6 +147,9 @@ class Refiner(BaseController):
         self._steps = self._refined = 0
         self._previous: np.ndarray | None = None
         self._seconds = 0.0
+        # Steps simulated on the fork, all told (not rewound by ``set_memory``: a search's
+        # look-aheads of the refiner cost them too).
+        self.simulated_steps = 0
 
     def act(self, observation: Any = None) -> np.ndarray:
         proposal = self.planner.act(observation)
@@ -250,6 +253,7 @@ class Refiner(BaseController):
             if j:
                 action = self.planner.act(None)
             _, _, terminated, _, info = self.ahead.step(np.clip(action + offset, -1.0, 1.0))
+            self.simulated_steps += 1
             active, due = info["active_keys"], goal[t]
             missed = np.flatnonzero(due & ~active)
             wrong = np.flatnonzero(active & ~due)
@@ -284,6 +288,7 @@ class Refiner(BaseController):
         return {
             "refined_share": self._refined / steps,
             "refine_seconds_per_step": self._seconds / steps,
+            "lookahead_steps_per_step": self.simulated_steps / steps,
         }
 
     def plan_arrays(self) -> dict[str, np.ndarray]:

@@ -175,33 +175,18 @@ def _run_practice(cell: Cell, options: SweepOptions, folder: Path, work: Path) -
     """A ``practice`` train cell: :func:`pianist.agents.practice.practise` on one core (the
     cell's seed seeds the look-ahead), saved after every pass in ``work`` so that a killed
     worker's retry goes on from its last pass."""
-    from pianist.agents.practice import (
-        TABLE,
-        PracticeConfig,
-        load_practice,
-        practise,
-        save_practice,
-        write_practice_config,
-    )
+    from pianist.agents.practice import TABLE, PracticeConfig, load_practice, practise_in
     from pianist.music import load_song
 
     work.mkdir(parents=True, exist_ok=True)
     start = None
+    config = PracticeConfig(seed=cell.seed)
     if (work / TABLE).is_file():
         _, config, start = load_practice(work)
-    else:
-        config = PracticeConfig(seed=cell.seed)
-        write_practice_config(work, cell.song, config)
     song = load_song(cell.song, fingering=cast("Fingering", options.fingering))
     budget_s = None if options.minutes is None else 60.0 * options.minutes
     started = time.perf_counter()
-    result = practise(
-        song,
-        config,
-        stop_after_s=budget_s,
-        start=start,
-        on_pass=lambda r: save_practice(work, r, config),
-    )
+    result = practise_in(work, song, cell.song, config, start=start, stop_after_s=budget_s)
     os.replace(work, folder / TRAIN_RUN)
     return {
         "f1": result.f1,
