@@ -8,7 +8,8 @@ from pianist.control import make_controller
 from pianist.control.planner import IKPlanner
 from pianist.control.refine import RefineOptions, Refiner, parse_refine_options
 from pianist.eval.session import make_env, play
-from pianist.music import load_song
+from pianist.music import Song, load_song
+from pianist.music.notes import Note
 from pianist.music.transforms import window
 
 
@@ -146,3 +147,30 @@ def test_cli_refine_is_for_the_planner_only(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--refine refines the planner" in err
     assert not (tmp_path / "out").exists()
+
+
+def test_keys_the_plan_leaves_out_do_not_count_in_the_look_ahead():
+    # A right-hand chord wider than the hand (two octaves) while the left hand is busy below:
+    # the plan leaves part of it out, and no perturbation of the fingers can play it.
+    notes = [Note(p, 0.1, 1.2, finger=f) for p, f in ((60, 0), (64, 1), (67, 2), (84, 4))]
+    notes += [Note(36, 0.1, 1.2, finger=9), Note(43, 0.1, 1.2, finger=5)]
+    song = Song(tuple(notes), name="too-wide")
+    options = RefineOptions(candidates=3, horizon_steps=3)
+    runs = []
+    for count_left_out in (False, True):
+        refiner = Refiner(options=options)
+        env = make_env(song, refiner, physics="fast")
+        env.reset(seed=0)
+        refiner.reset(env, seed=0)
+        goal = refiner.handle.goal.keys
+        left_out = np.any([hand.skip for hand in refiner.planner.hands], axis=0)
+        assert left_out.any() and not (refiner.planned & left_out).any()
+        assert refiner.planned.sum() == goal.sum() - left_out.sum()
+        if count_left_out:
+            refiner.planned = goal.copy()  # as if they counted
+        obs = None
+        for _ in range(goal.shape[0]):
+            obs, *_ = env.step(refiner.act(obs))
+        runs.append(refiner.simulated_steps)
+    # Counted, every look-ahead over the chord costs something and tries every candidate.
+    assert runs[0] < runs[1], runs

@@ -12,6 +12,10 @@ candidates (a finger that needed more push usually needs it for a few steps). Th
 unperturbed proposal is candidate 0 and wins ties, so where looking ahead finds nothing
 better the planner plays as it would alone.
 
+Keys the plan leaves out (no finger is sent to them: a chord wider than the hand) are not
+counted in a look-ahead's cost: no perturbation of the fingers plays them, and a look-ahead
+that misses only them ends the search as a perfect one does.
+
 Each look-ahead's cost is also split among the fingers (a missed key is its planned
 finger's, a wrong key the nearest fingertip's), and each finger's part of the perturbation
 that cost it least is combined into one more candidate (``per_finger``). A look-ahead step
@@ -144,6 +148,14 @@ class Refiner(BaseController):
         self.tip_sites = np.concatenate([hand.sites for hand in hands])
         # (H,) per hand, +1 if its fingers go up the keyboard from thumb to little finger.
         self.hand_direction = np.array([1.0 if hand.side == "right" else -1.0 for hand in hands])
+        # (T, 88) the due keys the plan gives a finger. The others (a chord wider than the
+        # hand) no perturbation plays, so they are left out of a look-ahead's cost: a
+        # look-ahead that misses only them ends the search as a perfect one does.
+        goal = self.handle.goal
+        self.planned = np.zeros_like(goal.keys)
+        for hand in hands:
+            local = self.planner.fingers - hand.finger_offset
+            self.planned |= goal.keys & ~hand.skip & (local >= 0) & (local < len(hand.fingers))
         self._steps = self._refined = 0
         self._previous: np.ndarray | None = None
         self._seconds = 0.0
@@ -254,9 +266,9 @@ class Refiner(BaseController):
                 action = self.planner.act(None)
             _, _, terminated, _, info = self.ahead.step(np.clip(action + offset, -1.0, 1.0))
             self.simulated_steps += 1
-            active, due = info["active_keys"], goal[t]
-            missed = np.flatnonzero(due & ~active)
-            wrong = np.flatnonzero(active & ~due)
+            active = info["active_keys"]
+            missed = np.flatnonzero(self.planned[t] & ~active)
+            wrong = np.flatnonzero(active & ~goal[t])
             cost += float(missed.size + o.wrong_weight * wrong.size)
             owners = fingers[t, missed]
             np.add.at(per_finger, owners[owners >= 0], 1.0)
