@@ -23,7 +23,7 @@ import mujoco
 import numpy as np
 
 from pianist.control.base import BaseController
-from pianist.control.hand_split import HandReach, SplitCosts, split_hands
+from pianist.control.hand_split import SplitCosts, split_hands
 from pianist.control.planner.config import (
     ENV_OPTIONS,
     FINGERS_PER_HAND,
@@ -253,10 +253,7 @@ class IKPlanner(BaseController):
         cfg = self.config
         right, left = sorted(self.hands, key=lambda h: h.side != "right")
         song_hand = np.where(goal.keys, np.where(goal.fingers < FINGERS_PER_HAND, 0, 1), -1)
-        right_reach, left_reach = (
-            HandReach(h.full_reach, h.reach, h.root_y, (float(h.tx_range[0]), float(h.tx_range[1])))
-            for h in (right, left)
-        )
+        right_reach, left_reach = right.reach_model(), left.reach_model()
         costs = SplitCosts(
             separation_m=cfg.forearm_separation_m,
             clearance_cost=cfg.clearance_cost,

@@ -9,6 +9,7 @@ Planned at reset (methods of :class:`ForearmPlan`; T frames, positions are the f
   frame, ``busy`` (T,) bool (the hand has notes), ``skip`` (T, 88) bool (its keys it leaves
   out), and for the piece plan ``key_fingers`` (T, 88) int (its finger 0-4 per key, or -1);
 - ``_keep_forearms_apart``: the two hands' ``tx_plan`` shifted so the forearms never touch;
+- ``reach_model``: what the hand reaches (:class:`pianist.control.hand_split.HandReach`);
 - ``playable_keyframes``: how many key-frames a plan leaves playable (to choose a plan);
 - ``plan_commands``: the reference path ``tx_path`` (T + 2, 2) (m, m/s at the end of each
   step), the shifts (``free`` (T,) bool: the fingers let go; ``shift_to`` (T,) int: the
@@ -26,6 +27,7 @@ import numpy as np
 import scipy.linalg
 
 from pianist.control.hand_plan import HandPlanCosts, move_frames, plan_hand
+from pianist.control.hand_split import HandReach
 from pianist.control.planner.config import FINGERS_PER_HAND, PlannerConfig, PlannerState
 from pianist.sim import constants as C
 
@@ -228,6 +230,11 @@ class ForearmPlan:
             fill = np.isnan(wanted)
             wanted[fill] = wanted[known[nxt[fill]]]
         self.tx_plan = np.clip(wanted, *self.tx_range)
+
+    def reach_model(self) -> HandReach:
+        """What this hand reaches, as the whole-piece plans take it (set at reset)."""
+        slide_range = (float(self.tx_range[0]), float(self.tx_range[1]))
+        return HandReach(self.full_reach, self.reach, self.root_y, slide_range)
 
     def playable_keyframes(self, planner: PlannerState) -> int:
         """Key-frames of this hand's plan that a finger can press: not skipped, not during a

@@ -1,0 +1,211 @@
+"""How much of a piece two hands can play: a plan's coverage against the reach ceiling.
+
+Both count a piece's due key-frames (a key due at a frame) with the hands' reach model: each
+finger's sampled reach across the keyboard, white and black keys apart
+(:attr:`pianist.control.hand_split.HandReach.full_reach`).
+
+- :func:`frame_ceiling`: per frame, the fewest due keys that *no* placement of the two hands
+  lets a finger press. Every frame on its own: both hands anywhere in their slides' ranges
+  (the forearm roots at least ``separation_m`` apart, the left on the left), the frame's
+  keys split by order across the keyboard (the left hand takes the lowest), and each hand's
+  keys matched in order to fingers whose reach covers them. With no travel time and no held
+  keys, this bounds the recall of any controller that plays with these fingers' reach,
+  whatever its plan, and its F1 (:func:`ceiling_scores`: per step, as the metrics count).
+- :func:`plan_coverage`: what a planner's plan (after its reset) makes of the same
+  key-frames: left out (no finger sent: a chord wider than the hand), in a shift (the
+  hand's fingers lifted while its slide travels), given a finger beyond its reach from the
+  planned position, and playable.
+
+``benchmarks/bench_coverage.py`` prints both per piece; ``docs/planner.md`` reads them.
+Arrays in, arrays out; lengths in m.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from pianist.control.hand_plan import key_prefix_values
+from pianist.control.hand_split import HandReach
+from pianist.sim import constants as C
+
+if TYPE_CHECKING:
+    from pianist.control.planner import IKPlanner
+
+#: Spacing of the slide positions the ceiling tries (m): finer than any finger's reach
+#: interval (the narrowest is ~6 mm), so a chord that fits only within a few mm is found.
+CEILING_STEP_M = 0.001
+
+
+def frame_ceiling(
+    keys: np.ndarray,
+    key_y: np.ndarray,
+    black: np.ndarray,
+    right: HandReach,
+    left: HandReach,
+    separation_m: float,
+    tolerance_m: float = 0.0,
+    step_m: float = CEILING_STEP_M,
+) -> np.ndarray:
+    """(T,) int: per frame, the due keys no placement of the two hands plays (module docstring).
+
+    Args:
+        keys: (T, 88) bool, keys due at each frame.
+        key_y: (88,) press point of each key across the keyboard (m).
+        black: (88,) bool, black keys.
+        right, left: each hand's reach and slide range (:class:`HandReach`).
+        separation_m: closest the forearm roots may come (m); 0 lets them meet.
+        tolerance_m: each finger's reach widened by this on both sides (m): the sampled
+            reach is a little conservative, and a bound should not be.
+        step_m: spacing of the slide positions tried (m).
+    """
+    if keys.ndim != 2 or keys.shape[1] != key_y.shape[0]:
+        raise ValueError(f"keys must be (T, {key_y.shape[0]}), not {keys.shape}")
+    right, left = (_widened(h, tolerance_m) for h in (right, left))
+    grids = [
+        np.arange(h.slide_range[0], h.slide_range[1] + step_m / 2, step_m) for h in (right, left)
+    ]
+    # Where each hand's forearm root is at each candidate, and for every right-hand position
+    # the last left-hand position (ascending) that keeps the forearms apart (-1: none).
+    right_root = right.root_y + grids[0]
+    left_root = left.root_y + grids[1]
+    last_left = np.searchsorted(left_root, right_root - separation_m, side="right") - 1
+    lost = np.zeros(keys.shape[0], dtype=np.int64)
+    cache: dict[tuple[int, ...], int] = {}
+    for t in np.flatnonzero(keys.any(axis=1)).tolist():
+        ids = np.flatnonzero(keys[t])
+        ids = ids[np.argsort(key_y[ids], kind="stable")]
+        signature = tuple(ids.tolist())
+        if signature not in cache:
+            cache[signature] = _fewest_lost(ids, key_y, black, right, left, grids, last_left)
+        lost[t] = cache[signature]
+    return lost
+
+
+def _fewest_lost(
+    ids: np.ndarray,
+    key_y: np.ndarray,
+    black: np.ndarray,
+    right: HandReach,
+    left: HandReach,
+    grids: list[np.ndarray],
+    last_left: np.ndarray,
+) -> int:
+    """One frame's keys (ascending y): how many the best placement and split leave unplayed."""
+    n = ids.size
+    ones = np.ones(n)
+    # high[s, p]: how many of the highest s keys the right hand plays from position p; low[s, q]
+    # the same for the left hand and the lowest s keys (edges count in full: edge cost 0).
+    high = key_prefix_values(
+        ids, ones, key_y, black, right.full_reach, right.full_reach, grids[0], 0.0, "down"
+    )
+    low = key_prefix_values(
+        ids, ones, key_y, black, left.full_reach, left.full_reach, grids[1], 0.0, "up"
+    )
+    # For each right-hand position, the best left-hand position that keeps clear of it.
+    best_low = np.maximum.accumulate(low, axis=1)  # (n + 1, PL): best over q' <= q
+    clear = last_left >= 0
+    best = 0.0
+    for s in range(n + 1):  # the left hand takes the lowest s keys
+        if not clear.any():
+            break
+        total = high[n - s, clear] + best_low[s, last_left[clear]]
+        best = max(best, float(total.max()))
+    return int(round(n - best))
+
+
+def _widened(hand: HandReach, tolerance_m: float) -> HandReach:
+    """``hand`` with every finger's full reach widened by ``tolerance_m`` on both sides; a
+    finger the sampling never brought to a key colour (the thumb on a black key, given a
+    single point) reaches none of it."""
+    full = hand.full_reach + np.array([-tolerance_m, tolerance_m])
+    never = (hand.full_reach[..., 1] - hand.full_reach[..., 0]) < 1e-6
+    # An empty interval (low above high) around the same point keeps the fingers' order.
+    full[never] = hand.full_reach[never] + np.array([1e-3, -1e-3])
+    return HandReach(full, full, hand.root_y, hand.slide_range)
+
+
+def ceiling_scores(keys: np.ndarray, lost: np.ndarray) -> tuple[float, float]:
+    """The episode recall and F1 (each the mean over the T steps, as the metrics take them)
+    of a player that presses, at every frame, all the due keys but ``lost`` (T,) of them and
+    nothing else: the most any controller scores when :func:`frame_ceiling` gives ``lost``
+    (a step's F1 grows with its recall and its precision, here 1).
+    """
+    due = keys.sum(axis=1)
+    recall = np.where(due > 0, (due - lost) / np.maximum(due, 1), 1.0)
+    f1 = 2.0 * recall / (1.0 + recall)
+    return float(recall.mean()), float(f1.mean())
+
+
+@dataclass(frozen=True)
+class Coverage:
+    """A piece's due key-frames as a plan leaves them, and the ceiling (module docstring)."""
+
+    due: int
+    """Key-frames due in the piece."""
+    left_out: int
+    """Due with no finger of either hand sent (the plan leaves them out)."""
+    in_shift: int
+    """Given a finger of a hand that is shifting then (its fingers lifted)."""
+    out_of_reach: int
+    """Given a finger, the hand not shifting, but beyond the finger's reach from the planned
+    position (by more than ``playable_tolerance_m``)."""
+    playable: int
+    """Given a finger that reaches the key from the planned position, the hand not shifting."""
+    ceiling_lost: int
+    """Due key-frames no placement of the two hands plays (:func:`frame_ceiling`)."""
+    ceiling_recall: float
+    """The episode recall no controller with these fingers' reach can pass
+    (:func:`ceiling_scores`)."""
+    ceiling_f1: float
+    """The episode F1 no controller with these fingers' reach can pass."""
+
+    def share(self, field: str) -> float:
+        """A count as a share of the due key-frames."""
+        return float(getattr(self, field)) / max(self.due, 1)
+
+    def to_dict(self) -> dict[str, float]:
+        return asdict(self)
+
+
+def plan_coverage(planner: IKPlanner) -> Coverage:
+    """What ``planner``'s plan makes of its piece's due key-frames, beside the ceiling.
+
+    ``planner`` must have been reset on its environment (the plan and the hands' reach are
+    made then).
+    """
+    goal, cfg = planner.goal, planner.config
+    keys = goal.keys
+    given = np.zeros_like(keys)
+    in_shift = playable = 0
+    for hand in planner.hands:
+        local = planner.fingers - hand.finger_offset
+        mine = keys & ~hand.skip & (local >= 0) & (local < 5)
+        given |= mine
+        in_shift += int((mine & hand.free[:, None]).sum())
+        playable += hand.playable_keyframes(planner)
+    right, left = sorted(planner.hands, key=lambda h: h.side != "right")
+    lost = frame_ceiling(
+        keys,
+        planner.key_point[:, 1],
+        C.BLACK_KEY_MASK,
+        right.reach_model(),
+        left.reach_model(),
+        cfg.forearm_separation_m,
+        tolerance_m=cfg.playable_tolerance_m,
+    )
+    due = int(keys.sum())
+    left_out = int((keys & ~given).sum())
+    recall, f1 = ceiling_scores(keys, lost)
+    return Coverage(
+        due=due,
+        left_out=left_out,
+        in_shift=in_shift,
+        out_of_reach=due - left_out - in_shift - playable,
+        playable=playable,
+        ceiling_lost=int(lost.sum()),
+        ceiling_recall=recall,
+        ceiling_f1=f1,
+    )
