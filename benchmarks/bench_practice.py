@@ -160,11 +160,15 @@ def main() -> None:
         import matplotlib.pyplot as plt
 
         fig, ax = plt.subplots(figsize=(7, 4))
-        for name, row in results.items():
+        # Twenty colours, then the line style changes: every curve tells from the others.
+        colours = plt.get_cmap("tab20").colors
+        for i, (name, row) in enumerate(results.items()):
             h = row["history"]
             seconds = [r["seconds"] / 60 for r in h]
             best = np.maximum.accumulate([r["f1"] for r in h])
-            ax.step(seconds, best, where="post", label=name)
+            style = ("-", "--", ":")[(i // len(colours)) % 3]
+            colour = colours[i % len(colours)]
+            ax.step(seconds, best, where="post", label=name, color=colour, linestyle=style)
         ax.set_xlabel("wall-clock minutes")
         ax.set_ylabel("best F1 so far")
         ax.set_title(f"practice, {args.physics} physics, {args.workers} workers")

@@ -174,3 +174,18 @@ def test_keys_the_plan_leaves_out_do_not_count_in_the_look_ahead():
         runs.append(refiner.simulated_steps)
     # Counted, every look-ahead over the chord costs something and tries every candidate.
     assert runs[0] < runs[1], runs
+
+
+def test_continuing_the_unperturbed_look_ahead_plays_the_same_with_fewer_steps():
+    # Where the planner's own action was played, the next step's unperturbed look-ahead is
+    # the last one's, one step further: continued instead of simulated again, the episode
+    # is the same action for action, with fewer steps simulated on the fork.
+    song = window(load_song("chopin-mazurka-op6-no2"), 0.0, 4.0)
+    runs = {}
+    for continued in (False, True):
+        options = RefineOptions(candidates=2, horizon_steps=3, continue_look_ahead=continued)
+        refiner = Refiner(options=options)
+        played = play(song, refiner, physics="fast", seed=0)
+        runs[continued] = (played.episode.actions, refiner.simulated_steps)
+    np.testing.assert_array_equal(runs[False][0], runs[True][0])
+    assert runs[True][1] < runs[False][1]

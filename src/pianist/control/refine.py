@@ -25,7 +25,10 @@ other, they stay stuck longer than the look-ahead sees.
 This is predictive sampling (the paper's MPC baseline) around the planner instead of around
 a spline: the planner supplies the motion, the samples only correct what the physics does to
 it (a finger that slides off, a key that flickers at the bottom of its travel, a late
-strike). It costs up to ``(candidates + 2) * horizon_steps`` simulated steps per step.
+strike). It costs up to ``(candidates + 2) * horizon_steps`` simulated steps per step, and
+one where the planner's own action is played and its look-ahead finds nothing to correct:
+the unperturbed look-ahead of the step before is then continued by one step
+(``continue_look_ahead``).
 """
 
 from __future__ import annotations
@@ -67,6 +70,12 @@ class RefineOptions:
     candidate): a finger that needed more push usually needs it for a few steps."""
     wrong_weight: float = 1.0
     """Cost of a key sounded that is not due, against 1 for a due key not sounded."""
+    continue_look_ahead: bool = True
+    """Where the last step played the planner's own action and the episode is where that
+    step's look-ahead went, continue that look-ahead by one step instead of simulating the
+    planner's again from the start: the same actions (the physics is deterministic; both
+    the state and the planner's next action are checked), ``horizon_steps - 1`` fewer steps
+    simulated per such step."""
     crossing_cost: float = 10.0
     """Cost of each look-ahead step that ends with two neighbouring fingers (index to little
     finger) crossed, one more than 3 mm past the other across the keys: perturbed towards
@@ -113,6 +122,28 @@ def parse_refine_options(spec: str) -> RefineOptions:
             what = "true or false" if kind == "bool" else "a number"
             raise ValueError(f"refine option {name} needs {what}, not {text!r}") from None
     return RefineOptions(**values)
+
+
+@dataclass
+class _Trace:
+    """The unperturbed look-ahead of one step, per look-ahead step j (kept to be continued)."""
+
+    step: int
+    """The episode step it started from."""
+    costs: list[float]
+    per_finger: list[np.ndarray]
+    """(10,) per step."""
+    actions: list[np.ndarray]
+    """The action played at each step (the planner's own)."""
+    states: list[tuple[np.ndarray, ...]]
+    """qpos, qvel, act and ctrl after each step."""
+    end: EnvState | None = None
+    """The fork's state after the last step, and the planner's memory then."""
+    memory: list[dict[str, np.ndarray]] | None = None
+
+
+def _physics_state(data: Any) -> tuple[np.ndarray, ...]:
+    return (data.qpos.copy(), data.qvel.copy(), data.act.copy(), data.ctrl.copy())
 
 
 class Refiner(BaseController):
@@ -162,6 +193,7 @@ class Refiner(BaseController):
         # Steps simulated on the fork, all told (not rewound by ``set_memory``: a search's
         # look-aheads of the refiner cost them too).
         self.simulated_steps = 0
+        self._trace: _Trace | None = None
 
     def act(self, observation: Any = None) -> np.ndarray:
         proposal = self.planner.act(observation)
@@ -180,8 +212,11 @@ class Refiner(BaseController):
             offsets[1] = self._previous
         costs: list[float] = []
         finger_costs: list[np.ndarray] = []
-        for offset in offsets:
-            cost, per_finger = self._look_ahead(proposal, offset, state, memory)
+        for index, offset in enumerate(offsets):
+            if index == 0:
+                cost, per_finger = self._unperturbed(proposal, state, memory)
+            else:
+                cost, per_finger = self._look_ahead(proposal, offset, state, memory)
             costs.append(cost)
             finger_costs.append(per_finger)
             if cost == 0.0:
@@ -196,6 +231,8 @@ class Refiner(BaseController):
         self.planner.set_memory(memory)
         best = int(np.argmin(costs))  # the first of equals: the proposal wins ties
         self._previous = offsets[best] if best > 0 else None
+        if best > 0:
+            self._trace = None  # the episode leaves the unperturbed look-ahead's path
         self._steps += 1
         self._refined += best > 0
         self._seconds += time.perf_counter() - start
@@ -247,29 +284,89 @@ class Refiner(BaseController):
         actions, from ``state`` with the planner's ``memory``: the total, and (10,) the part
         of it each finger is answerable for (a due key: the finger the plan gives it; a wrong
         key: the fingertip nearest to it along the keyboard)."""
-        o = self.options
         self.ahead.restore(state)
         self.planner.attach(self.ahead_handle)
         self.planner.set_memory(memory)
+        trace = self._roll(proposal, offset, state.step, self.options.horizon_steps, False)
+        return float(sum(trace.costs)), np.sum(trace.per_finger, axis=0) + np.zeros(10)
+
+    def _unperturbed(
+        self, proposal: np.ndarray, state: EnvState, memory: list[dict[str, np.ndarray]]
+    ) -> tuple[float, np.ndarray]:
+        """:meth:`_look_ahead` of the planner's own actions, continuing the last step's by
+        one step where the episode followed it (``continue_look_ahead``), and kept."""
+        o = self.options
+        last = self._trace
+        data = self.handle.data
+        follows = (
+            o.continue_look_ahead
+            and last is not None
+            and last.end is not None
+            and len(last.actions) >= 2
+            and last.step + 1 == state.step
+            and np.array_equal(last.actions[1], proposal)
+            and all(
+                np.array_equal(a, b)
+                for a, b in zip(last.states[0], _physics_state(data), strict=True)
+            )
+        )
+        if follows:
+            assert last is not None and last.end is not None and last.memory is not None
+            self.ahead.restore(last.end)
+            self.planner.attach(self.ahead_handle)
+            self.planner.set_memory(last.memory)
+            more = self._roll(None, None, last.step + len(last.actions), 1, True)
+            trace = _Trace(
+                step=state.step,
+                costs=last.costs[1:] + more.costs,
+                per_finger=last.per_finger[1:] + more.per_finger,
+                actions=last.actions[1:] + more.actions,
+                states=last.states[1:] + more.states,
+                end=more.end,
+                memory=more.memory,
+            )
+        else:
+            self.ahead.restore(state)
+            self.planner.attach(self.ahead_handle)
+            self.planner.set_memory(memory)
+            trace = self._roll(proposal, None, state.step, o.horizon_steps, True)
+        self._trace = trace
+        return float(sum(trace.costs)), np.sum(trace.per_finger, axis=0) + np.zeros(10)
+
+    def _roll(
+        self,
+        first: np.ndarray | None,
+        offset: np.ndarray | None,
+        start: int,
+        steps: int,
+        keep: bool,
+    ) -> _Trace:
+        """Step the fork (where it is, the planner attached to it) ``steps`` steps from episode
+        step ``start``: the action ``first`` at the first (None: the planner's), then the
+        planner's, each plus ``offset`` (None: none). Returns each step's cost; with ``keep``
+        also what :meth:`_unperturbed` continues from (``end`` is left None if the episode
+        or the song ended within the steps)."""
+        o = self.options
         goal = self.handle.goal.keys
         fingers = self.planner.fingers
         key_y = self.planner.key_point[:, 1]
         site_xpos = self.ahead_handle.data.site_xpos
-        cost = 0.0
-        per_finger = np.zeros(10)
-        action = proposal
-        for j in range(o.horizon_steps):
-            t = state.step + j
+        trace = _Trace(step=start, costs=[], per_finger=[], actions=[], states=[])
+        complete = True
+        for j in range(steps):
+            t = start + j
             if t >= goal.shape[0]:
+                complete = False
                 break
-            if j:
-                action = self.planner.act(None)
-            _, _, terminated, _, info = self.ahead.step(np.clip(action + offset, -1.0, 1.0))
+            action = first if j == 0 and first is not None else self.planner.act(None)
+            played = np.clip(action if offset is None else action + offset, -1.0, 1.0)
+            _, _, terminated, _, info = self.ahead.step(played)
             self.simulated_steps += 1
             active = info["active_keys"]
             missed = np.flatnonzero(self.planned[t] & ~active)
             wrong = np.flatnonzero(active & ~goal[t])
-            cost += float(missed.size + o.wrong_weight * wrong.size)
+            cost = float(missed.size + o.wrong_weight * wrong.size)
+            per_finger = np.zeros(10)
             owners = fingers[t, missed]
             np.add.at(per_finger, owners[owners >= 0], 1.0)
             tip_y = site_xpos[self.tip_sites, 1]
@@ -280,9 +377,18 @@ class Refiner(BaseController):
             if crossed.size:
                 cost += o.crossing_cost
                 np.add.at(per_finger, crossed, o.crossing_cost)
+            trace.costs.append(cost)
+            trace.per_finger.append(per_finger)
+            if keep:
+                trace.actions.append(np.asarray(action).copy())
+                trace.states.append(_physics_state(self.ahead_handle.data))
             if terminated:
+                complete = False
                 break
-        return cost, per_finger
+        if keep and complete:
+            trace.end = self.ahead.snapshot()
+            trace.memory = self.planner.memory()
+        return trace
 
     def _crossed(self, tip_y: np.ndarray) -> np.ndarray:
         """The fingers (0-9) crossed with a neighbour (index to little finger, more than
