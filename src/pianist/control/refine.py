@@ -141,6 +141,13 @@ class _Trace:
     """The fork's state after the last step, and the planner's memory then."""
     memory: list[dict[str, np.ndarray]] | None = None
 
+    def total(self) -> tuple[float, np.ndarray]:
+        """The look-ahead's cost, and (10,) each finger's part of it."""
+        per_finger = np.zeros(10)
+        for part in self.per_finger:
+            per_finger += part
+        return float(sum(self.costs)), per_finger
+
 
 def _physics_state(data: Any) -> tuple[np.ndarray, ...]:
     return (data.qpos.copy(), data.qvel.copy(), data.act.copy(), data.ctrl.copy())
@@ -288,7 +295,7 @@ class Refiner(BaseController):
         self.planner.attach(self.ahead_handle)
         self.planner.set_memory(memory)
         trace = self._roll(proposal, offset, state.step, self.options.horizon_steps, False)
-        return float(sum(trace.costs)), np.sum(trace.per_finger, axis=0) + np.zeros(10)
+        return trace.total()
 
     def _unperturbed(
         self, proposal: np.ndarray, state: EnvState, memory: list[dict[str, np.ndarray]]
@@ -331,7 +338,7 @@ class Refiner(BaseController):
             self.planner.set_memory(memory)
             trace = self._roll(proposal, None, state.step, o.horizon_steps, True)
         self._trace = trace
-        return float(sum(trace.costs)), np.sum(trace.per_finger, axis=0) + np.zeros(10)
+        return trace.total()
 
     def _roll(
         self,
