@@ -10,6 +10,7 @@ from pianist.control.hand_split import HandReach
 from pianist.control.planner import ENV_OPTIONS, IKPlanner
 from pianist.env import PianoEnv
 from pianist.eval.metrics import precision_recall_f1
+from pianist.eval.session import play
 from pianist.music import Note, Song
 
 PITCH_M = 0.0235  # one white key
@@ -151,3 +152,37 @@ def test_the_ceiling_scores_are_the_metrics_of_a_player_missing_only_the_lost_ke
     assert recall == pytest.approx(expected["recall"])
     assert f1 == pytest.approx(expected["f1"])
     assert expected["precision"] == 1.0
+
+
+def test_a_played_episode_reports_the_ceiling_and_stays_below_it():
+    # The chord over three octaves and a half again, played: metrics carry the ceiling of
+    # these hands, and the episode's own recall and F1 stay below it.
+    notes = (
+        Note(36, 0.5, 1.5, finger=9),
+        Note(60, 0.5, 1.5, finger=0),
+        Note(84, 0.5, 1.5, finger=4),
+    )
+    song = Song(notes, name="three-hands")
+    metrics = play(song, IKPlanner(), physics="fast", seed=0).metrics
+    assert 0.0 < metrics["reach_ceiling_f1"] < 1.0
+    assert metrics["recall"] <= metrics["reach_ceiling_recall"] + 1e-9
+    assert metrics["f1"] <= metrics["reach_ceiling_f1"] + 1e-9
+    assert metrics["plan_left_out_share"] > 0.0
+
+
+def test_with_one_hand_the_other_reaches_nothing():
+    notes = (
+        Note(60, 0.5, 1.0, finger=0),
+        Note(64, 0.5, 1.0, finger=2),
+        Note(84, 0.5, 1.0, finger=4),
+    )
+    options = {**ENV_OPTIONS, "hands": "right"}
+    env = PianoEnv(Song(notes, name="one-hand"), physics="fast", **options)
+    planner = IKPlanner()
+    env.reset(seed=0)
+    planner.reset(env, seed=0)
+    coverage = plan_coverage(planner)
+    # Two of the three keys fit one hand; the third, two octaves up, is lost at every frame.
+    frames = int(env.goal.keys[:, 84 - 21].sum())
+    assert frames > 0
+    assert coverage.ceiling_lost == frames

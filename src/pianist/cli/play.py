@@ -157,8 +157,10 @@ class Play:
             extra_metrics={"song": self.song, "controller": spec},
         )
         song_f1 = f"  song F1 {metrics['song_f1']:.3f}" if "song_f1" in metrics else ""
+        ceiling = metrics.get("reach_ceiling_f1")
+        ceiling_f1 = f" (at most {ceiling:.3f} with these hands)" if ceiling is not None else ""
         _out(
             f"{self.song}: precision {metrics['precision']:.3f}  recall {metrics['recall']:.3f}  "
-            f"F1 {metrics['f1']:.3f}{song_f1}  sustain F1 {metrics['sustain_f1']:.3f}  "
+            f"F1 {metrics['f1']:.3f}{ceiling_f1}{song_f1}  sustain F1 {metrics['sustain_f1']:.3f}  "
             f"({metrics['steps']} steps, {metrics['realtime_factor']:.1f}x real time) -> {self.out}"
         )

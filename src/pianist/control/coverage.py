@@ -186,13 +186,17 @@ def plan_coverage(planner: IKPlanner) -> Coverage:
         given |= mine
         in_shift += int((mine & hand.free[:, None]).sum())
         playable += hand.playable_keyframes(planner)
-    right, left = sorted(planner.hands, key=lambda h: h.side != "right")
+    reach = {hand.side: hand.reach_model() for hand in planner.hands}
+    # A scene with one hand: the other reaches nothing and is never in the way.
+    nothing = np.zeros((5, 2, 2))
+    right = reach.get("right", HandReach(nothing, nothing, 1e3, (0.0, 0.0)))
+    left = reach.get("left", HandReach(nothing, nothing, -1e3, (0.0, 0.0)))
     lost = frame_ceiling(
         keys,
         planner.key_point[:, 1],
         C.BLACK_KEY_MASK,
-        right.reach_model(),
-        left.reach_model(),
+        right,
+        left,
         cfg.forearm_separation_m,
         tolerance_m=cfg.playable_tolerance_m,
     )

@@ -411,6 +411,7 @@ class Refiner(BaseController):
     def stats(self) -> dict[str, float]:
         steps = max(self._steps, 1)
         return {
+            **self.planner.stats(),
             "refined_share": self._refined / steps,
             "refine_seconds_per_step": self._seconds / steps,
             "lookahead_steps_per_step": self.simulated_steps / steps,

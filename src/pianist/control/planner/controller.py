@@ -23,6 +23,7 @@ import mujoco
 import numpy as np
 
 from pianist.control.base import BaseController
+from pianist.control.coverage import Coverage, plan_coverage
 from pianist.control.hand_split import SplitCosts, split_hands
 from pianist.control.planner.config import (
     ENV_OPTIONS,
@@ -71,6 +72,7 @@ class IKPlanner(BaseController):
         return dict(PAPER_ENV_OPTIONS if self.config.paper_embodiment else ENV_OPTIONS)
 
     def reset(self, env: gym.Env, seed: int | None = None) -> None:
+        self._coverage: Coverage | None = None
         self.setup(env)
         goal, handle, cfg = self.goal, self.handle, self.config
         key = (id(goal), handle.scene.options, cfg)
@@ -151,6 +153,20 @@ class IKPlanner(BaseController):
         self.plan_kind, self.fingers, hands = snapshot
         for hand, arrays in zip(self.hands, hands, strict=True):
             hand.__dict__.update(arrays)
+
+    def stats(self) -> dict[str, float]:
+        """What the plan leaves out or lifts for a shift, as shares of the due key-frames, and
+        the recall and F1 no controller with these hands' reach can pass
+        (:func:`pianist.control.coverage.plan_coverage`), for metrics.json."""
+        if self._coverage is None:
+            self._coverage = plan_coverage(self)
+        c = self._coverage
+        return {
+            "reach_ceiling_recall": c.ceiling_recall,
+            "reach_ceiling_f1": c.ceiling_f1,
+            "plan_left_out_share": c.share("left_out"),
+            "plan_in_shift_share": c.share("in_shift"),
+        }
 
     def plan_arrays(self) -> dict[str, np.ndarray]:
         """The plan since ``reset``, per step:
