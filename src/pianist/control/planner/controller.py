@@ -63,6 +63,8 @@ class IKPlanner(BaseController):
 
     def __init__(self, config: PlannerConfig | None = None) -> None:
         self.config = config or PlannerConfig()
+        self._coverage: Coverage | None = None
+        self._planned = False  # a plan is made at reset
 
     # ----------------------------------------------------------------------------- set-up
 
@@ -72,7 +74,7 @@ class IKPlanner(BaseController):
         return dict(PAPER_ENV_OPTIONS if self.config.paper_embodiment else ENV_OPTIONS)
 
     def reset(self, env: gym.Env, seed: int | None = None) -> None:
-        self._coverage: Coverage | None = None
+        self._coverage, self._planned = None, True
         self.setup(env)
         goal, handle, cfg = self.goal, self.handle, self.config
         key = (id(goal), handle.scene.options, cfg)
@@ -157,7 +159,10 @@ class IKPlanner(BaseController):
     def stats(self) -> dict[str, float]:
         """What the plan leaves out or lifts for a shift, as shares of the due key-frames, and
         the recall and F1 no controller with these hands' reach can pass
-        (:func:`pianist.control.coverage.plan_coverage`), for metrics.json."""
+        (:func:`pianist.control.coverage.plan_coverage`), for metrics.json (none before the
+        first reset)."""
+        if not self._planned:
+            return {}
         if self._coverage is None:
             self._coverage = plan_coverage(self)
         c = self._coverage
