@@ -28,7 +28,7 @@ import time
 import numpy as np
 
 from pianist.agents.practice import CorrectedPlanner, PracticeConfig, practise
-from pianist.control.planner import IKPlanner
+from pianist.control.planner import IKPlanner, PlannerConfig
 from pianist.eval.session import make_env, play
 from pianist.music import load_song
 
@@ -49,11 +49,11 @@ class _Noisy:
         return np.clip(action + noise, -1.0, 1.0).astype(np.float32)
 
 
-def _plan_ceiling(song, physics: str) -> float:
-    """The share of the piece's due key-frames that the planner's plan leaves playable (a
+def _plan_ceiling(song, physics: str, hand_planning: str) -> float:
+    """The share of the piece's due key-frames that the practised plan leaves playable (a
     finger given, within its modelled reach from the planned hand position, not during a
     shift). Practice corrects how the plan is played, not the plan."""
-    planner = IKPlanner()
+    planner = IKPlanner(PlannerConfig(hand_planning=hand_planning))
     env = make_env(song, planner, physics=physics)
     env.reset(seed=0)
     planner.reset(env, seed=0)
@@ -103,7 +103,11 @@ def main() -> None:
         noisy = {"planner": [], "practised": []}
         for seed in range(args.noise_episodes):
             for label, table in (("planner", None), ("practised", result.table)):
-                controller = IKPlanner() if table is None else CorrectedPlanner(table)
+                controller = (
+                    IKPlanner()
+                    if table is None
+                    else CorrectedPlanner(table, hand_planning=result.hand_planning)
+                )
                 played = play(song, _Noisy(controller, args.noise_std, seed), physics=args.physics)
                 noisy[label].append(played.metrics["f1"])
         row = {
@@ -116,7 +120,8 @@ def main() -> None:
             "noisy_planner_f1": float(np.mean(noisy["planner"])),
             "noisy_practised_f1": float(np.mean(noisy["practised"])),
             "best_recall": next(r for r in history if r["pass"] == result.pass_index)["recall"],
-            "plan_playable_share": _plan_ceiling(song, args.physics),
+            "plan_playable_share": _plan_ceiling(song, args.physics, result.hand_planning),
+            "hand_planning": result.hand_planning,
             "env_steps_per_s": _env_steps_per_s(history),
             "history": history,
         }

@@ -17,7 +17,7 @@ from pianist.agents.practice import (
 )
 from pianist.agents.specs import controller_from_spec
 from pianist.cli import main
-from pianist.control.planner import IKPlanner
+from pianist.control.planner import IKPlanner, PlannerConfig
 from pianist.control.refine import RefineOptions
 from pianist.env.handle import control_handle
 from pianist.eval.session import play
@@ -45,8 +45,16 @@ def test_a_zero_table_plays_the_planners_actions():
 def test_practice_keeps_the_best_pass_and_its_table_replays_it_exactly(practised):
     history = practised.history
     assert [row["pass"] for row in history] == [0, 1, 2]
-    planner_f1 = play(SONG, IKPlanner(), physics="fast").metrics["f1"]
-    assert history[0]["f1"] == pytest.approx(planner_f1)  # pass 0 is the planner alone
+    # Pass 0 is the planner alone with each hand plan; the best played is practised.
+    plan = practised.hand_planning
+    played = {
+        p: play(SONG, IKPlanner(PlannerConfig(hand_planning=p)), physics="fast").metrics["f1"]
+        for p in FAST.plans
+    }
+    assert history[0]["plan_f1"] == pytest.approx(played)
+    assert history[0]["hand_planning"] == plan and played[plan] == max(played.values())
+    planner_f1 = played[plan]
+    assert history[0]["f1"] == pytest.approx(planner_f1)
     assert practised.f1 == max(row["f1"] for row in history)
     assert practised.f1 > planner_f1  # the look-ahead found something on this passage
     assert history[practised.pass_index]["f1"] == practised.f1
@@ -57,11 +65,39 @@ def test_practice_keeps_the_best_pass_and_its_table_replays_it_exactly(practised
         assert steps < row["env_steps"] <= steps * (1 + 6 * 4)
     # The table is a correction of the fingers (the refiner perturbs nothing else) ...
     planner = IKPlanner()
-    replay = play(SONG, CorrectedPlanner(practised.table, physics="fast"), physics="fast")
+    corrected = CorrectedPlanner(practised.table, physics="fast", hand_planning=plan)
+    replay = play(SONG, corrected, physics="fast")
     assert replay.metrics["f1"] == practised.f1  # ... and replays the best pass exactly.
     planner_dims = set(np.flatnonzero(np.abs(practised.table).max(axis=0) > 1e-6))
     play(SONG, planner, physics="fast")
     assert planner_dims and planner_dims <= set(planner.finger_action_dims().tolist())
+
+
+def test_the_practised_plan_is_kept_with_its_table(tmp_path, practised):
+    # This chorale opening plays better with both hands planned together than with the
+    # planner's default choice: practice takes that plan, saves it with the table, and the
+    # table is replayed with it (with the default plan it plays something else).
+    assert practised.history[0]["plan_f1"]["split"] > practised.history[0]["plan_f1"]["best"]
+    assert practised.hand_planning == "split"
+    save_practice(tmp_path, practised, FAST)
+    loaded = CorrectedPlanner.load(tmp_path)
+    assert loaded.config.hand_planning == "split"
+    assert play(SONG, loaded, physics="fast").metrics["f1"] == practised.f1
+    default = CorrectedPlanner(practised.table, physics="fast")
+    assert play(SONG, default, physics="fast").metrics["f1"] != practised.f1
+    # One plan only: that one.
+    only = practise(SONG, dataclasses.replace(FAST, passes=1, plans=("best",)))
+    assert only.hand_planning == "best" and list(only.history[0]["plan_f1"]) == ["best"]
+
+
+def test_a_table_saved_before_plans_were_chosen_loads_with_the_default(tmp_path, practised):
+    save_practice(tmp_path, practised, FAST)
+    with np.load(tmp_path / "practice.npz") as data:
+        arrays = {name: data[name] for name in data.files if name != "hand_planning"}
+    np.savez(tmp_path / "practice.npz", **arrays)
+    assert CorrectedPlanner.load(tmp_path).config.hand_planning == "best"
+    write_practice_config(tmp_path, "chorale", FAST)
+    assert load_practice(tmp_path)[2].hand_planning == "best"
 
 
 def test_a_table_is_refused_for_another_piece(practised):
@@ -96,6 +132,10 @@ def test_bad_practice_settings_are_refused():
         PracticeConfig(schedule=())
     with pytest.raises(ValueError, match=r"\(T, A\)"):
         CorrectedPlanner(np.zeros(3))
+    with pytest.raises(ValueError, match="practice plans"):
+        PracticeConfig(plans=("sideways",))
+    with pytest.raises(ValueError, match="practice plans"):
+        PracticeConfig(plans=())
 
 
 def test_train_practice_then_eval_and_play_it(tmp_path, capsys):

@@ -9,6 +9,9 @@ A practice pass plays the whole piece with the refiner (:class:`pianist.control.
 around the corrected planner: at every step it looks ahead with perturbations of the fingers'
 part of the action (and small ones of the forearms' slides), plays the best, and the action
 played becomes the step's new correction.
+Before the first pass the planner plays the piece once with each hand plan of
+``PracticeConfig.plans`` (its default choice, and both hands planned together), and the one
+that plays best is practised: which plan suits a piece differs, and practice keeps the order.
 The unperturbed candidate is the last pass's own action, so each pass starts from the
 performance the previous one reached and only moves where looking ahead finds better; the
 passes take the look-aheads of a schedule in turn (:data:`SCHEDULE`) with fresh samples. With
@@ -33,13 +36,13 @@ import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, get_args, get_type_hints
 
 import gymnasium as gym
 import numpy as np
 
 from pianist.agents.rundir import CONFIG, LOG
-from pianist.control.planner import IKPlanner
+from pianist.control.planner import IKPlanner, PlannerConfig
 from pianist.control.refine import RefineOptions, Refiner
 from pianist.env.handle import control_handle
 from pianist.files import write_bytes_atomic, write_json_atomic
@@ -75,6 +78,13 @@ little earlier): K545 0.917 -> 0.927 and the mazurka 0.815 -> 0.818 after 4 minu
 core, fast physics."""
 
 
+PLANS: tuple[str, ...] = ("best", "split")
+"""The hand plans a practice tries first: the planner's default choice among its one-hand
+plans, and both hands planned together. Which plays a piece better differs from piece to
+piece, and practice keeps the ranking: the Schoenberg 0.813 / 0.841 played, 0.899 / 0.912
+after 4 minutes; the first polonaise 0.749 / 0.729, then 0.834 / 0.811 (fast, one worker)."""
+
+
 @dataclass(frozen=True)
 class PracticeConfig:
     """How a piece is practised."""
@@ -92,6 +102,9 @@ class PracticeConfig:
     schedule: tuple[RefineOptions, ...] = SCHEDULE
     """The look-aheads, taken in turn: pass p, worker w uses the
     ``((p - 1) * workers + w)``-th (cycling)."""
+    plans: tuple[str, ...] = PLANS
+    """The planner's hand plans (``PlannerConfig.hand_planning``) the practice starts by
+    playing once each; it practises the one that plays best (the first of equals)."""
 
     def __post_init__(self) -> None:
         if self.passes < 1:
@@ -100,6 +113,11 @@ class PracticeConfig:
             raise ValueError(f"practice needs at least 1 worker, not {self.workers}")
         if not self.schedule:
             raise ValueError("practice needs at least one look-ahead in its schedule")
+        known = get_args(get_type_hints(PlannerConfig)["hand_planning"])
+        if not self.plans or any(plan not in known for plan in self.plans):
+            raise ValueError(
+                f"practice plans must be some of {', '.join(known)}, not {list(self.plans)}"
+            )
         from pianist.sim.scene import PHYSICS_PRESETS
 
         if self.physics not in PHYSICS_PRESETS:
@@ -118,6 +136,8 @@ class PracticeConfig:
     def from_dict(cls, data: dict[str, Any]) -> PracticeConfig:
         data = dict(data)
         data["schedule"] = tuple(RefineOptions(**o) for o in data.get("schedule", ()))
+        if "plans" in data:
+            data["plans"] = tuple(data["plans"])
         return cls(**data)
 
 
@@ -126,7 +146,8 @@ class CorrectedPlanner(IKPlanner):
 
     ``table``: (T, A) corrections in action units for the T steps of one piece (steps past T
     get none). ``fingerprint``: the goal frames' :func:`goal_fingerprint` the table was
-    learned on (None: not checked); ``physics``: the preset it was learned in (None: any).
+    learned on (None: not checked); ``physics``: the preset it was learned in (None: any);
+    ``hand_planning``: the planner's hand plan it was learned with.
     """
 
     def __init__(
@@ -135,8 +156,9 @@ class CorrectedPlanner(IKPlanner):
         *,
         fingerprint: str | None = None,
         physics: str | None = None,
+        hand_planning: str = "best",
     ) -> None:
-        super().__init__()
+        super().__init__(PlannerConfig(hand_planning=hand_planning))  # type: ignore[arg-type]
         table = np.asarray(table, dtype=np.float64)
         if table.ndim != 2:
             raise ValueError(f"a correction table is (T, A), not {table.shape}")
@@ -161,9 +183,11 @@ class CorrectedPlanner(IKPlanner):
                 table = data["table"]
                 fingerprint = str(data["fingerprint"])
                 physics = str(data["physics"])
+                # Tables from before the plan was chosen were practised with the default.
+                plan = str(data["hand_planning"]) if "hand_planning" in data else "best"
         except (OSError, KeyError, ValueError) as exc:
             raise ValueError(f"{path} is not a practice table ({exc})") from None
-        return cls(table, fingerprint=fingerprint, physics=physics)
+        return cls(table, fingerprint=fingerprint, physics=physics, hand_planning=plan)
 
     def env_options(self, song: Song | None = None) -> dict[str, Any]:
         options = super().env_options(song)
@@ -200,7 +224,13 @@ class CorrectedPlanner(IKPlanner):
         return (raw + self.table[t]).clip(-1.0, 1.0).astype(np.float32)
 
     def options_dict(self) -> dict[str, Any]:
-        return {"practice": {"steps": int(self.table.shape[0]), "physics": self.physics}}
+        return {
+            "practice": {
+                "steps": int(self.table.shape[0]),
+                "physics": self.physics,
+                "hand_planning": self.config.hand_planning,
+            }
+        }
 
 
 class _PassRefiner(Refiner):
@@ -229,6 +259,8 @@ class PracticeResult:
     pass_index: int
     history: list[dict[str, Any]]
     fingerprint: str
+    hand_planning: str = "best"
+    """The planner's hand plan practised (the best played of ``PracticeConfig.plans``)."""
 
 
 def practise(
@@ -253,29 +285,18 @@ def practise(
     Returns:
         The best table and the history of every pass.
     """
-    from pianist.eval.session import play
-
     config = config or PracticeConfig()
     t0 = time.perf_counter()
-    if start is None:
-        baseline = play(song, IKPlanner(), physics=config.physics, seed=0)
-        goal = control_handle(baseline.env).goal
-        steps, dims = baseline.episode.actions.shape
-        result = PracticeResult(
-            table=np.zeros((steps, dims)),
-            f1=float(baseline.metrics["f1"]),
-            pass_index=0,
-            history=[_row(0, baseline.metrics, time.perf_counter() - t0, 0.0)],
-            fingerprint=goal_fingerprint(goal),
-        )
-        if on_pass is not None:
-            on_pass(result)
-    else:
-        result = start
-    elapsed0 = result.history[-1]["seconds"] if result.history else 0.0
-    first = result.history[-1]["pass"] + 1 if result.history else 1
     pool = _pool(config.workers)
     try:
+        if start is None:
+            result = _first_pass(song, config, pool, t0)
+            if on_pass is not None:
+                on_pass(result)
+        else:
+            result = start
+        elapsed0 = result.history[-1]["seconds"] if result.history else 0.0
+        first = result.history[-1]["pass"] + 1 if result.history else 1
         for index in range(first, config.passes + 1):
             jobs = [
                 (
@@ -285,6 +306,7 @@ def practise(
                     config.physics,
                     config.options(index, w),
                     [config.seed, index, w],
+                    result.hand_planning,
                 )
                 for w in range(config.workers)
             ]
@@ -312,6 +334,43 @@ def practise(
     return result
 
 
+def _first_pass(song: Song, config: PracticeConfig, pool: Any, t0: float) -> PracticeResult:
+    """Pass 0: the planner alone with each of ``config.plans`` (in the pool's processes when
+    there is one), the best played kept (the first of equals); its row records them all."""
+    plans = list(config.plans)
+    if pool is None:
+        trials = [_plan_trial(song, config.physics, plan) for plan in plans]
+    else:
+        physics = [config.physics] * len(plans)
+        trials = list(pool.map(_plan_trial, [song] * len(plans), physics, plans))
+    best = max(range(len(plans)), key=lambda i: (trials[i][0]["f1"], -i))
+    metrics, steps, dims, fingerprint = trials[best]
+    row = _row(0, metrics, time.perf_counter() - t0, 0.0)
+    row["hand_planning"] = plans[best]
+    row["plan_f1"] = {plan: trial[0]["f1"] for plan, trial in zip(plans, trials, strict=True)}
+    return PracticeResult(
+        table=np.zeros((steps, dims)),
+        f1=float(metrics["f1"]),
+        pass_index=0,
+        history=[row],
+        fingerprint=fingerprint,
+        hand_planning=plans[best],
+    )
+
+
+def _plan_trial(song: Song, physics: str, plan: str) -> tuple[dict[str, float], int, int, str]:
+    """The planner alone with hand plan ``plan``: its metrics (f1, precision, recall), the
+    episode's steps and action size, and the goal's fingerprint."""
+    from pianist.eval.session import play
+
+    config = PlannerConfig(hand_planning=plan)  # type: ignore[arg-type]
+    played = play(song, IKPlanner(config), physics=physics, seed=0)
+    goal = control_handle(played.env).goal
+    steps, dims = played.episode.actions.shape
+    metrics = {name: float(played.metrics[name]) for name in ("f1", "precision", "recall")}
+    return metrics, steps, dims, goal_fingerprint(goal)
+
+
 def _pool(workers: int) -> Any:
     """Spawned worker processes for ``workers`` > 1 (None: play the passes here)."""
     if workers == 1:
@@ -329,13 +388,14 @@ def _practice_pass(
     physics: str,
     options: RefineOptions,
     seed: list[int],
+    hand_planning: str = "best",
 ) -> tuple[np.ndarray, dict[str, float], float]:
     """One pass: the piece played by the refiner around the planner corrected by ``table``.
     Returns the table that replays that performance, its metrics (f1, precision, recall) and
     the share of steps the look-ahead changed."""
     from pianist.eval.session import play
 
-    planner = CorrectedPlanner(table, fingerprint=fingerprint)
+    planner = CorrectedPlanner(table, fingerprint=fingerprint, hand_planning=hand_planning)
     refiner = _PassRefiner(planner, options, seed)
     played = play(song, refiner, physics=physics, seed=0)
     actions = np.asarray(played.episode.actions, dtype=np.float64)
@@ -377,6 +437,7 @@ def save_practice(run_dir: str | Path, result: PracticeResult, config: PracticeC
         f1=np.array(result.f1),
         pass_index=np.array(result.pass_index),
         history=np.array(json.dumps(result.history)),
+        hand_planning=np.array(result.hand_planning),
     )
     write_bytes_atomic(buffer.getvalue(), run_dir / TABLE)
     lines = "".join(json.dumps(row) + "\n" for row in result.history)
@@ -440,6 +501,9 @@ def load_practice(run_dir: str | Path) -> tuple[str, PracticeConfig, PracticeRes
                 pass_index=int(arrays["pass_index"]),
                 history=json.loads(str(arrays["history"])),
                 fingerprint=str(arrays["fingerprint"]),
+                hand_planning=(
+                    str(arrays["hand_planning"]) if "hand_planning" in arrays else "best"
+                ),
             )
     except (OSError, KeyError, ValueError, TypeError, json.JSONDecodeError) as exc:
         raise ValueError(f"{run_dir} is not a readable practice run ({exc})") from None
