@@ -157,9 +157,14 @@ class Train:
 
         def report(result: Any) -> None:
             row = result.history[-1]
+            plans = row.get("plan_f1")
+            tried = ""
+            if plans and len(plans) > 1:
+                each = ", ".join(f"{name} {f1:.3f}" for name, f1 in plans.items())
+                tried = f"; the planner's hand plans: {each}; practising {row['hand_planning']}"
             _out(
                 f"pass {row['pass']}: F1 {row['f1']:.3f} (best {result.f1:.3f}), "
-                f"{row['seconds']:.0f} s"
+                f"{row['seconds']:.0f} s{tried}"
             )
 
         result = practise_in(
