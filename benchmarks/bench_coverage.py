@@ -29,12 +29,11 @@ import json
 
 import numpy as np
 
-from pianist.control.coverage import ceiling_scores, frame_ceiling, plan_coverage
+from pianist.control.coverage import ceiling_scores, plan_coverage, planner_ceiling
 from pianist.control.hand_split import HandReach
 from pianist.control.planner import IKPlanner, PlannerConfig
 from pianist.eval.session import make_env, play
 from pianist.music import list_songs, load_song
-from pianist.sim import constants as C
 
 #: WRJ2 (towards the little finger) and WRJ1 (flexion), rad: the hand's span thumb to little
 #: finger on white keys grows from 0.129 m to 0.160 m (an octave is 0.1645 m).
@@ -74,27 +73,14 @@ def _thumb_on_black(hand: HandReach) -> HandReach:
 def what_if_row(name: str, physics: str) -> dict:
     """The ceiling's recall and F1 for these hands and for hands that could do more."""
     song = load_song(name, fingering="auto")
-    hands = {}
-    for label, wrist in (("straight", None), ("turned", WHAT_IF_WRIST)):
-        config = None if wrist is None else PlannerConfig(wrist_pose=wrist)
-        planner = _reset(song, physics, config)
-        right, left = sorted(planner.hands, key=lambda h: h.side != "right")
-        hands[label] = (right.reach_model(), left.reach_model())
-    keys, cfg = planner.goal.keys, planner.config
+    planners = {
+        "straight": _reset(song, physics),
+        "turned": _reset(song, physics, PlannerConfig(wrist_pose=WHAT_IF_WRIST)),
+    }
+    keys = planners["straight"].goal.keys
 
     def lost(label: str, thumb: bool) -> np.ndarray:
-        right, left = hands[label]
-        if thumb:
-            right, left = _thumb_on_black(right), _thumb_on_black(left)
-        return frame_ceiling(
-            keys,
-            planner.key_point[:, 1],
-            C.BLACK_KEY_MASK,
-            right,
-            left,
-            cfg.forearm_separation_m,
-            tolerance_m=cfg.playable_tolerance_m,
-        )
+        return planner_ceiling(planners[label], _thumb_on_black if thumb else None)
 
     cases = {
         "these_hands": lost("straight", False),

@@ -11,6 +11,7 @@ finger's sampled reach across the keyboard, white and black keys apart
   keys matched in order to fingers whose reach covers them. With no travel time and no held
   keys, this bounds the recall of any controller that plays with these fingers' reach,
   whatever its plan, and its F1 (:func:`ceiling_scores`: per step, as the metrics count).
+- :func:`planner_ceiling`: the same for a planner's piece and hands (after its reset).
 - :func:`plan_coverage`: what a planner's plan (after its reset) makes of the same
   key-frames: left out (no finger sent: a chord wider than the hand), in a shift (the
   hand's fingers lifted while its slide travels), given a finger beyond its reach from the
@@ -22,6 +23,7 @@ Arrays in, arrays out; lengths in m.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from typing import TYPE_CHECKING
 
@@ -170,14 +172,38 @@ class Coverage:
         return asdict(self)
 
 
+def planner_ceiling(
+    planner: IKPlanner, able: Callable[[HandReach], HandReach] | None = None
+) -> np.ndarray:
+    """:func:`frame_ceiling` of ``planner``'s piece and hands (after its reset), with its key
+    points, forearm separation and ``playable_tolerance_m``; ``able`` maps each hand's reach
+    to another (what if the hands could do more). A scene with one hand: the other reaches
+    nothing and is never in the way."""
+    cfg = planner.config
+    reach = {hand.side: hand.reach_model() for hand in planner.hands}
+    nothing = np.zeros((5, 2, 2))
+    right = reach.get("right", HandReach(nothing, nothing, 1e3, (0.0, 0.0)))
+    left = reach.get("left", HandReach(nothing, nothing, -1e3, (0.0, 0.0)))
+    if able is not None:
+        right, left = able(right), able(left)
+    return frame_ceiling(
+        planner.goal.keys,
+        planner.key_point[:, 1],
+        C.BLACK_KEY_MASK,
+        right,
+        left,
+        cfg.forearm_separation_m,
+        tolerance_m=cfg.playable_tolerance_m,
+    )
+
+
 def plan_coverage(planner: IKPlanner) -> Coverage:
     """What ``planner``'s plan makes of its piece's due key-frames, beside the ceiling.
 
     ``planner`` must have been reset on its environment (the plan and the hands' reach are
     made then).
     """
-    goal, cfg = planner.goal, planner.config
-    keys = goal.keys
+    keys = planner.goal.keys
     given = np.zeros_like(keys)
     in_shift = playable = 0
     for hand in planner.hands:
@@ -186,20 +212,7 @@ def plan_coverage(planner: IKPlanner) -> Coverage:
         given |= mine
         in_shift += int((mine & hand.free[:, None]).sum())
         playable += hand.playable_keyframes(planner)
-    reach = {hand.side: hand.reach_model() for hand in planner.hands}
-    # A scene with one hand: the other reaches nothing and is never in the way.
-    nothing = np.zeros((5, 2, 2))
-    right = reach.get("right", HandReach(nothing, nothing, 1e3, (0.0, 0.0)))
-    left = reach.get("left", HandReach(nothing, nothing, -1e3, (0.0, 0.0)))
-    lost = frame_ceiling(
-        keys,
-        planner.key_point[:, 1],
-        C.BLACK_KEY_MASK,
-        right,
-        left,
-        cfg.forearm_separation_m,
-        tolerance_m=cfg.playable_tolerance_m,
-    )
+    lost = planner_ceiling(planner)
     due = int(keys.sum())
     left_out = int((keys & ~given).sum())
     recall, f1 = ceiling_scores(keys, lost)
