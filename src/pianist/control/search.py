@@ -39,6 +39,7 @@ import numpy as np
 
 from pianist.control.base import BaseController
 from pianist.control.planner.config import FINGERS_PER_HAND
+from pianist.control.scoring import step_f1_loss
 from pianist.env.handle import ControlHandle, control_handle
 
 if TYPE_CHECKING:
@@ -155,18 +156,6 @@ def parse_search_spec(spec: str) -> tuple[str, SearchOptions]:
 def _planner(base: Searchable) -> IKPlanner:
     """The planner of ``base`` (the base itself when it is one)."""
     return cast("IKPlanner", getattr(base, "planner", base))
-
-
-def step_f1_loss(due: np.ndarray, active: np.ndarray) -> float:
-    """1 - F1 of one step's sounding keys ``active`` (88,) bool against the ``due`` keys (88,)
-    bool, with the metric's convention (nothing due and nothing sounding: F1 1)."""
-    hits = int(np.count_nonzero(due & active))
-    n_due, n_active = int(np.count_nonzero(due)), int(np.count_nonzero(active))
-    if n_due == 0 and n_active == 0:
-        return 0.0
-    if hits == 0:
-        return 1.0
-    return 1.0 - 2.0 * hits / (n_due + n_active)
 
 
 class SegmentSearch(BaseController):
