@@ -102,10 +102,11 @@ class ControlHandle:
         """The environment's episode state now (a copy; see :meth:`PianoEnv.snapshot`)."""
         return self._env.snapshot()
 
-    def fork(self) -> PianoEnv:
+    def fork(self, seed: int | None = None) -> PianoEnv:
         """A private copy of the environment in its current state, to look ahead in: step it
-        and :meth:`PianoEnv.restore` it to any :meth:`snapshot` of this one."""
-        return self._env.fork()
+        and :meth:`PianoEnv.restore` it to any :meth:`snapshot` of this one (one with no
+        episode started yet: reset with ``seed``, :meth:`PianoEnv.fork`)."""
+        return self._env.fork(seed)
 
 
 def control_handle(env: gym.Env) -> ControlHandle:

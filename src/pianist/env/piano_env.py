@@ -156,6 +156,7 @@ class PianoEnv(gym.Env):
         self._setup_goal()
         self._setup_spaces()
         self._t = 0
+        self._started = False  # an episode has been started (reset)
 
     # ----------------------------------------------------------------------------- set-up
 
@@ -294,6 +295,7 @@ class PianoEnv(gym.Env):
         # Hold the initial pose: each position servo's target is its current length.
         data.ctrl[:] = np.clip(data.actuator_length, *model.actuator_ctrlrange.T)
         self._t = 0
+        self._started = True
         self._active = np.zeros(C.NUM_KEYS, dtype=bool)
         self._sustain = False
         self._pending_events = EMPTY_EVENTS
@@ -443,6 +445,7 @@ class PianoEnv(gym.Env):
         if state.data.qpos.shape != self.data.qpos.shape or state.step > self.goal.num_frames:
             raise ValueError("the snapshot is of another environment")
         mujoco.mj_copyData(self.data, self.model, state.data)
+        self._started = True
         self._t = state.step
         self._active = state.active.copy()
         self._sustain = state.sustain
@@ -451,17 +454,22 @@ class PianoEnv(gym.Env):
         self._key_qpos_after_step = state.key_qpos_after_step.copy()
         self._warnings_seen = state.warnings_seen
 
-    def fork(self) -> PianoEnv:
+    def fork(self, seed: int | None = None) -> PianoEnv:
         """A second environment of the same song and configuration in this one's state, for
         looking ahead: stepping it leaves this one untouched. It shares the model, scene and
-        goal (read only) and has its own simulator state; it does not render."""
+        goal (read only) and has its own simulator state; it does not render. Of an
+        environment with no episode started yet, the fork is reset with ``seed`` (the state
+        this one's ``reset(seed=seed)`` would start from)."""
         other = copy.copy(self)
         other.data = mujoco.MjData(self.model)
         other._substep_active = np.zeros_like(self._substep_active)
         other._renderer = None
         other.render_mode = None
         other._np_random = copy.deepcopy(self._np_random)
-        other.restore(self.snapshot())
+        if self._started:
+            other.restore(self.snapshot())
+        else:
+            other.reset(seed=seed)
         return other
 
     def render(self) -> np.ndarray | None:
