@@ -8,7 +8,9 @@ from pianist.control.hand_plan import (
     finger_order,
     move_frames,
     plan_hand,
+    step_f1_costs,
 )
+from pianist.eval.metrics import per_step_precision_recall_f1
 
 DT = 0.05
 PITCH_M = 0.0235  # one white key
@@ -134,3 +136,43 @@ def test_the_plan_is_deterministic():
     np.testing.assert_array_equal(a.position, b.position)
     np.testing.assert_array_equal(a.fingers, b.fingers)
     assert a.cost == b.cost
+
+
+def test_step_f1_costs_are_what_the_metric_loses():
+    # Random frames of both hands' keys; each candidate loses the first `lost` of this
+    # hand's keys, the other hand keeps some of its own: the costs are the F1 the metric
+    # takes off those steps, scaled.
+    rng = np.random.default_rng(1)
+    T, scale = 60, 3.0
+    keys = rng.random((T, 88)) < 0.06
+    mine = keys & (np.arange(88) >= 44)
+    other_keeps = keys & ~mine & (rng.random((T, 88)) < 0.7)
+    lost = np.minimum(rng.integers(0, 4, (T, 2)), mine.sum(axis=1)[:, None])
+    cost, frame_cost = step_f1_costs(keys, mine, lost.astype(float), other_keeps.sum(1), scale)
+
+    def f1(pressed):
+        return per_step_precision_recall_f1(pressed, keys)[2]
+
+    best = f1(other_keeps | mine)
+    for p in range(2):
+        pressed = other_keeps.copy()
+        for t in range(T):
+            pressed[t, np.flatnonzero(mine[t])[lost[t, p] :]] = True
+        np.testing.assert_allclose(cost[:, p], scale * (best - f1(pressed)), atol=1e-12)
+    np.testing.assert_allclose(frame_cost, scale * (best - f1(other_keeps)), atol=1e-12)
+
+
+def test_the_step_f1_objective_keeps_steps_not_key_frames():
+    # A four-key chord for 2 frames, then at once a note 30 cm away for 4 (the slide needs
+    # 5 frames for it): one of the two is lost. Counted in key-frames the chord is worth
+    # more (4 keys x 2 frames); counted as the metric does, in steps, the note (4 steps).
+    chord = [(40 + i, 10, 12, i) for i in range(4)]
+    far = [(53, 12, 16, 0)]
+    assert move_frames(KEY_Y[53] - KEY_Y[40], DT) > 4
+    _, by_keys = _plan(chord + far, T=16, objective="key_frames")
+    assert not by_keys.skip[10:12].any()
+    assert all(_reaches(by_keys, 40 + i, 10, i) for i in range(4))
+    assert not _reaches(by_keys, 53, 12, 0)
+    _, by_steps = _plan(chord + far, T=16, objective="step_f1")
+    assert by_steps.skip[10:12, 40:44].any()
+    assert all(_reaches(by_steps, 53, t, 0) for t in range(12, 16))

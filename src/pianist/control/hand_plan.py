@@ -14,6 +14,10 @@ frames costs what the move loses. The cheapest path over the whole piece is the 
   the hand's fingers for the frames the slide needs to get there (from its servo's measured
   speed, :func:`move_frames`), so it costs the hand's key-frames due in those frames before t,
   plus ``shift_cost``.
+- **Counting** (``HandPlanCosts.objective``): a lost key costs its weight (``key_frames``),
+  or the F1 it takes from its frame's step (``step_f1``, :func:`step_f1_costs`), the unit
+  of the metric, which averages each step's F1: a key lost from a step with one key due
+  costs far more than one of a chord.
 
 So the plan stays put while every key is reachable, moves during rests when it can, starts
 long jumps early enough for the slide to arrive, and, where a chord is wider than the hand,
@@ -24,9 +28,13 @@ Everything here is arrays in, arrays out; lengths in m, times in frames (control
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from typing import Literal
 
 import numpy as np
+
+#: What the plan counts a lost key as (:attr:`HandPlanCosts.objective`).
+Objective = Literal["key_frames", "step_f1"]
 
 #: Worth of keeping a held key's finger on it, against 1 for playing a key at all.
 HELD_BONUS = 0.5
@@ -62,6 +70,21 @@ class HandPlanCosts:
     may give a held key to another finger, which lets it up)."""
     shift_cost: float = 0.3
     """Cost of a shift on top of the key-frames it loses."""
+    objective: Objective = "key_frames"
+    """What a lost key costs. ``key_frames``: its weight, the same in every frame.
+    ``step_f1``: what it takes from the frame's F1, the metric's unit (F1 per step, averaged
+    over steps): the one key of a frame costs the whole step, one key of a six-key chord
+    (both hands' keys counted) about a tenth of one; times ``step_f1_scale``."""
+    step_f1_scale: float = 20.0
+    """With ``objective="step_f1"``: key-frames' worth of one step's F1, the exchange rate
+    against the costs above that are not lost keys (comfort, moves, shifts), which stay in
+    key-frames."""
+    step_f1_move_scale: float = 4.0
+    """With ``objective="step_f1"``, the move, shift and held-key costs times this: a hand
+    that moves loses more in execution (late landings, a swing of the wrist) than the
+    key-frames the plan counts, and against keys counted at ``step_f1_scale`` a plan with
+    cheap moves moves too often (open-etude-12 0.780 at 1, 0.788 at 4, whole-piece plans
+    alone, fast)."""
 
 
 def move_frames(distance_m: np.ndarray | float, dt: float) -> np.ndarray:
@@ -110,6 +133,7 @@ def plan_hand(
     costs: HandPlanCosts | None = None,
     refinger: bool = False,
     extra_cost: Callable[[np.ndarray], np.ndarray] | None = None,
+    other_kept: np.ndarray | None = None,
 ) -> HandPlan:
     """The cheapest slide positions over a piece for one hand (module docstring).
 
@@ -133,6 +157,8 @@ def plan_hand(
             first); ``fingers`` then only says which keys are this hand's.
         extra_cost: candidate positions (P,) -> (T, P) further cost of each (e.g. coming too
             close to the other forearm).
+        other_kept: (T,) with ``objective="step_f1"``, the keys the other hand's plan keeps
+            at each frame (None: all the due keys that are not this hand's).
     Returns:
         The :class:`HandPlan`.
     """
@@ -163,12 +189,22 @@ def plan_hand(
         lo_in, hi_in = reach[finger_ids, colour].T
         stay = _stay_costs(frames, offset, lo, hi, lo_in, hi_in, weights, grid, T, c)
         centre_offset = rest_offset[finger_ids]
+    frame_cost = np.zeros(T)  # what losing all the hand's keys at a frame costs
+    np.add.at(frame_cost, frames, weights)
+    if c.objective == "step_f1":
+        stay, frame_cost = step_f1_costs(keys, mine, stay, other_kept, c.step_f1_scale)
+        k = c.step_f1_move_scale
+        c = replace(
+            c,
+            small_move_cost=k * c.small_move_cost,
+            small_move_cost_per_m=k * c.small_move_cost_per_m,
+            held_move_cost=k * c.held_move_cost,
+            shift_cost=k * c.shift_cost,
+        )
     stay += _comfort_costs(frames, offset - centre_offset, grid, T, c)
     if extra_cost is not None:
         stay += extra_cost(grid)
-    lost = np.zeros(T + 1)
-    np.add.at(lost, frames + 1, weights)
-    lost = np.cumsum(lost)  # lost[t]: weighted key-frames due before frame t
+    lost = np.r_[0.0, np.cumsum(frame_cost)]  # lost[t]: the cost of frames before t lost
     held = np.zeros(T)  # keys of the hand due at both t - 1 and t
     held[1:] = (mine[1:] & mine[:-1]).sum(axis=1)
     # The hand moves only where its keys change: frames with the same keys form one segment.
@@ -387,6 +423,41 @@ def _voice_weights(
     else:
         np.minimum.at(extreme, frames, offset)
     return np.where(offset == extreme[frames], weight, 1.0)
+
+
+def step_f1_costs(
+    keys: np.ndarray,
+    mine: np.ndarray,
+    lost: np.ndarray,
+    other_kept: np.ndarray | None,
+    scale: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Lost keys as the per-step F1 they cost (:attr:`HandPlanCosts.objective`).
+
+    A step's F1 with k of its n due keys pressed and nothing else is 2k / (k + n); a key
+    lost from a frame with few keys costs more of it than one from a full chord.
+
+    Args:
+        keys: (T, 88) bool, all the keys due (both hands).
+        mine: (T, 88) bool, this hand's.
+        lost: (T, P) the (weighted) keys of this hand each candidate position loses.
+        other_kept: (T,) the keys the other hand keeps (None: all its keys).
+        scale: key-frames' worth of one step's F1.
+    Returns:
+        (T, P) ``scale`` x the step's F1 below the F1 with all this hand's keys kept, for
+        each position; and (T,) the same for losing all of them (the frame in a shift).
+    """
+    due = keys.sum(axis=1).astype(float)
+    own = mine.sum(axis=1).astype(float)
+    other = due - own if other_kept is None else np.minimum(other_kept, due - own)
+
+    def f1(kept: np.ndarray, due: np.ndarray) -> np.ndarray:
+        return np.where(due > 0, 2.0 * kept / np.maximum(kept + due, 1e-9), 1.0)
+
+    full = f1(own + other, due)
+    kept = np.maximum(own[:, None] - lost, 0.0) + other[:, None]
+    position_cost = scale * (full[:, None] - f1(kept, due[:, None]))
+    return position_cost, scale * (full - f1(other, due))
 
 
 def _reachable(relative: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:

@@ -126,6 +126,7 @@ class ForearmPlan:
         take: np.ndarray | None = None,
         extra_cost: Callable[[np.ndarray], np.ndarray] | None = None,
         drop: np.ndarray | None = None,
+        other_kept: np.ndarray | None = None,
     ) -> None:
         """The forearm slide position at every frame from the whole-piece plan
         (:func:`pianist.control.hand_plan.plan_hand`), with its ``busy``, ``skip`` and
@@ -156,6 +157,7 @@ class ForearmPlan:
             costs=costs,
             refinger=refinger,
             extra_cost=extra_cost,
+            other_kept=other_kept,
         )
         self.tx_plan, self.busy, self.skip = plan.position, plan.busy, plan.skip
         self.key_fingers = plan.fingers
@@ -237,8 +239,13 @@ class ForearmPlan:
         return HandReach(self.full_reach, self.reach, self.root_y, slide_range)
 
     def playable_keyframes(self, planner: PlannerState) -> int:
-        """Key-frames of this hand's plan that a finger can press: not skipped, not during a
-        shift, and within the finger's reach from the planned position."""
+        """Key-frames of this hand's plan that a finger can press (:meth:`playable_mask`)."""
+        return int(self.playable_mask(planner).sum())
+
+    def playable_mask(self, planner: PlannerState) -> np.ndarray:
+        """(T, 88) bool: the due keys of this hand's plan that a finger can press at each
+        frame: not skipped, not during a shift, and within the finger's reach (widened by
+        ``playable_tolerance_m``) from the planned position."""
         goal = planner.goal
         frames, keys = np.nonzero(goal.keys & ~self.skip & ~self.free[:, None])
         finger = planner.fingers[frames, keys] - self.finger_offset
@@ -247,7 +254,10 @@ class ForearmPlan:
         lo, hi = self.full_reach[finger, C.BLACK_KEY_MASK[keys].astype(int)].T
         relative = planner.key_point[keys, 1] - self.tx_plan[frames]
         tolerance = planner.config.playable_tolerance_m
-        return int(np.sum((relative >= lo - tolerance) & (relative <= hi + tolerance)))
+        inside = (relative >= lo - tolerance) & (relative <= hi + tolerance)
+        mask = np.zeros(goal.keys.shape, dtype=bool)
+        mask[frames[inside], keys[inside]] = True
+        return mask
 
     def plan_commands(self, m, dt: float, cfg: PlannerConfig, multi_step: bool) -> None:
         """The forearm's reference path along the keyboard, ``tx_path`` (T + 2, 2): position
