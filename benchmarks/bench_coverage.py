@@ -7,7 +7,8 @@ For every song (``pianist.control.coverage``; one reset of the default planner p
   own (no travel time), by the fingers' sampled reach widened by the planner's
   ``playable_tolerance_m``, scored per step as the metrics score;
 - the **plan**: the shares left out (no finger sent), in a shift (the hand's fingers lifted
-  while it travels) and playable;
+  while it travels) and playable, and the plan's F1 (a player that sounds exactly the
+  playable key-frames: what the plan leaves to execution);
 - with ``--play``, one episode of the planner (seed 0): its recall and F1;
 - with ``--practice JSON`` (``bench_practice.py``'s output), the practised recall and F1;
 - with ``--what-if``, the ceiling for hands that could do more than these: the thumb on a
@@ -114,7 +115,7 @@ def main() -> None:
             practised = json.load(f)["songs"]
     header = (
         f"{'song':40s} {'due':>5s} {'ceiling R':>9s} {'ceiling F1':>10s} {'left out':>8s} "
-        f"{'in shift':>8s} {'playable':>8s}"
+        f"{'in shift':>8s} {'playable':>8s} {'plan F1':>7s}"
     )
     if args.play:
         header += f" {'played R':>8s} {'played F1':>9s}"
@@ -131,7 +132,7 @@ def main() -> None:
         line = (
             f"{name[:40]:40s} {row['due']:5d} {row['ceiling_recall']:9.3f} "
             f"{row['ceiling_f1']:10.3f} {row['left_out_share']:8.3f} "
-            f"{row['in_shift_share']:8.3f} {row['playable_share']:8.3f}"
+            f"{row['in_shift_share']:8.3f} {row['playable_share']:8.3f} {row['plan_f1']:7.3f}"
         )
         if args.play:
             line += f" {row['played_recall']:8.3f} {row['played_f1']:9.3f}"

@@ -5,7 +5,12 @@ import itertools
 import numpy as np
 import pytest
 
-from pianist.control.coverage import ceiling_scores, frame_ceiling, plan_coverage
+from pianist.control.coverage import (
+    ceiling_scores,
+    frame_ceiling,
+    plan_coverage,
+    playable_mask,
+)
 from pianist.control.hand_split import HandReach
 from pianist.control.planner import ENV_OPTIONS, IKPlanner
 from pianist.env import PianoEnv
@@ -136,6 +141,13 @@ def test_a_plans_coverage_accounts_for_every_due_key_frame():
     assert coverage.left_out + coverage.in_shift + coverage.out_of_reach >= coverage.ceiling_lost
     assert 0.0 < coverage.ceiling_recall < 1.0
     assert coverage.ceiling_recall < coverage.ceiling_f1 < 1.0
+    # The plan's F1 is the metric of a player that sounds exactly its playable key-frames,
+    # which no plan of these hands can make better than the ceiling.
+    playable = playable_mask(planner)
+    assert int(playable.sum()) == coverage.playable
+    assert not (playable & ~env.goal.keys).any()
+    assert coverage.plan_f1 == pytest.approx(precision_recall_f1(playable, env.goal.keys)["f1"])
+    assert coverage.plan_f1 < coverage.ceiling_f1 + 1e-9
 
 
 def test_the_ceiling_scores_are_the_metrics_of_a_player_missing_only_the_lost_keys():
@@ -168,6 +180,7 @@ def test_a_played_episode_reports_the_ceiling_and_stays_below_it():
     assert metrics["recall"] <= metrics["reach_ceiling_recall"] + 1e-9
     assert metrics["f1"] <= metrics["reach_ceiling_f1"] + 1e-9
     assert metrics["plan_left_out_share"] > 0.0
+    assert 0.0 < metrics["plan_f1"] <= metrics["reach_ceiling_f1"] + 1e-9
 
 
 def test_with_one_hand_the_other_reaches_nothing():

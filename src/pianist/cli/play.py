@@ -157,8 +157,10 @@ class Play:
             extra_metrics={"song": self.song, "controller": spec},
         )
         song_f1 = f"  song F1 {metrics['song_f1']:.3f}" if "song_f1" in metrics else ""
-        ceiling = metrics.get("reach_ceiling_f1")
+        ceiling, planned = metrics.get("reach_ceiling_f1"), metrics.get("plan_f1")
         ceiling_f1 = f" (at most {ceiling:.3f} with these hands)" if ceiling is not None else ""
+        if ceiling is not None and planned is not None:
+            ceiling_f1 = f" (plan {planned:.3f}, at most {ceiling:.3f} with these hands)"
         _out(
             f"{self.song}: precision {metrics['precision']:.3f}  recall {metrics['recall']:.3f}  "
             f"F1 {metrics['f1']:.3f}{ceiling_f1}{song_f1}  sustain F1 {metrics['sustain_f1']:.3f}  "

@@ -15,7 +15,8 @@ finger's sampled reach across the keyboard, white and black keys apart
 - :func:`plan_coverage`: what a planner's plan (after its reset) makes of the same
   key-frames: left out (no finger sent: a chord wider than the hand), in a shift (the
   hand's fingers lifted while its slide travels), given a finger beyond its reach from the
-  planned position, and playable.
+  planned position, and playable; and the plan's own F1 (:func:`plan_f1`): the score of a
+  player that sounds exactly the playable key-frames, what the plan leaves to execution.
 
 ``benchmarks/bench_coverage.py`` prints both per piece; ``docs/planner.md`` reads them.
 Arrays in, arrays out; lengths in m.
@@ -31,6 +32,7 @@ import numpy as np
 
 from pianist.control.hand_plan import key_prefix_values
 from pianist.control.hand_split import HandReach
+from pianist.control.scoring import step_f1
 from pianist.sim import constants as C
 
 if TYPE_CHECKING:
@@ -163,6 +165,8 @@ class Coverage:
     (:func:`ceiling_scores`)."""
     ceiling_f1: float
     """The episode F1 no controller with these fingers' reach can pass."""
+    plan_f1: float
+    """The episode F1 of sounding exactly the plan's playable key-frames (:func:`plan_f1`)."""
 
     def share(self, field: str) -> float:
         """A count as a share of the due key-frames."""
@@ -197,6 +201,22 @@ def planner_ceiling(
     )
 
 
+def playable_mask(planner: IKPlanner) -> np.ndarray:
+    """(T, 88) bool: the due keys ``planner``'s plan (after its reset) leaves playable at each
+    frame, both hands (:meth:`~pianist.control.planner.forearm.ForearmPlan.playable_mask`)."""
+    mask = np.zeros(planner.goal.keys.shape, dtype=bool)
+    for hand in planner.hands:
+        mask |= hand.playable_mask(planner)
+    return mask
+
+
+def plan_f1(planner: IKPlanner) -> float:
+    """The episode F1 (mean of the per-step F1, as the metrics take it) of a player that
+    sounds exactly the key-frames ``planner``'s plan leaves playable and nothing else: what
+    the plan allows, all of which execution can still lose."""
+    return float(step_f1(playable_mask(planner), planner.goal.keys).mean())
+
+
 def plan_coverage(planner: IKPlanner) -> Coverage:
     """What ``planner``'s plan makes of its piece's due key-frames, beside the ceiling.
 
@@ -205,13 +225,13 @@ def plan_coverage(planner: IKPlanner) -> Coverage:
     """
     keys = planner.goal.keys
     given = np.zeros_like(keys)
-    in_shift = playable = 0
+    in_shift = 0
     for hand in planner.hands:
         local = planner.fingers - hand.finger_offset
         mine = keys & ~hand.skip & (local >= 0) & (local < 5)
         given |= mine
         in_shift += int((mine & hand.free[:, None]).sum())
-        playable += hand.playable_keyframes(planner)
+    playable = int(playable_mask(planner).sum())
     lost = planner_ceiling(planner)
     due = int(keys.sum())
     left_out = int((keys & ~given).sum())
@@ -225,4 +245,5 @@ def plan_coverage(planner: IKPlanner) -> Coverage:
         ceiling_lost=int(lost.sum()),
         ceiling_recall=recall,
         ceiling_f1=f1,
+        plan_f1=plan_f1(planner),
     )
