@@ -13,6 +13,7 @@ from pianist.agents.fingertip import (
     read_fingering,
     save_policy,
 )
+from pianist.agents.fingertip.controller import PLAN_FINGERING_CONFIG
 from pianist.agents.fingertip.features import (
     FEATURE_DIM,
     FINGERS,
@@ -154,7 +155,7 @@ def test_the_plan_fingering_is_the_planners_own_and_the_policy_reads_it():
     from pianist.control.planner import IKPlanner
 
     env = make_env(PIECE, IKPlanner(), physics="fast")
-    planner = IKPlanner()
+    planner = IKPlanner(PLAN_FINGERING_CONFIG)
     planner.reset(env, seed=0)
     song = read_fingering(planner, "song")
     plan = read_fingering(planner, "plan")

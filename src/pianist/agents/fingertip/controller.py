@@ -50,6 +50,14 @@ from pianist.control.planner.forearm import _Servo
 from pianist.files import atomic_dir
 from pianist.sim import constants as C
 
+#: The planner whose plan fingers a song for a policy that reads the plan's fingering, and
+#: whose decisions label it: its plan chosen from the candidates the shipped policy was
+#: trained with, by the key-frames each leaves playable, not by rehearsal (a policy reads no
+#: physics ahead, and three rehearsals at reset would slow it from ~14x real time to ~5x).
+PLAN_FINGERING_CONFIG = PlannerConfig(
+    choose_plan="playable", best_candidates=("frame", "piece-song", "piece")
+)
+
 FORMAT = "pianist-fingertip"
 VERSION = 1
 CONFIG_FILE = "fingertip.json"
@@ -192,7 +200,7 @@ class FingertipController(BaseController):
         expert: ExpertRecorder | None = None,
     ) -> None:
         self.policy = policy if isinstance(policy, FingertipPolicy) else load_policy(policy)
-        self.config = config or PlannerConfig()
+        self.config = config or PLAN_FINGERING_CONFIG
         self.expert = expert
         if expert is not None and expert.fingering != self.fingering:
             raise ValueError(

@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from pianist.agents.fingertip.controller import (
+    PLAN_FINGERING_CONFIG,
     ExpertRecorder,
     Fingering,
     FingertipController,
@@ -44,9 +45,9 @@ def expert_config(fingering: Fingering = "plan") -> PlannerConfig:
     the fingering it reads: for ``"plan"`` the default planner, whose own plan is that
     fingering (open-etude-12 0.777, fast); for ``"song"`` the planner's whole-piece hand
     plan with the song's fingering (0.690: a pianist's fingering spans more than this
-    hand)."""
+    hand). The plan is chosen without rehearsal (:data:`PLAN_FINGERING_CONFIG`)."""
     if fingering == "plan":
-        return PlannerConfig()
+        return PLAN_FINGERING_CONFIG
     return PlannerConfig(hand_planning="piece", refinger=False)
 
 

@@ -4,9 +4,11 @@ At reset it plans where each forearm will be along the keyboard over the whole p
 frame by frame with the song's fingering (the hand goes where the assigned fingers reach
 their keys, and stays while they still do) or over the whole piece at once
 (:mod:`pianist.control.hand_plan`: a dynamic programme that also chooses the fingers the
-Shadow hand can actually span, and shares keys one hand cannot reach with the other), and
-keeps the plan that leaves the most notes playable (``PlannerConfig.hand_planning``). Then
-each control step it
+Shadow hand can actually span, and shares keys one hand cannot reach with the other, counting
+either lost key-frames or the per-step F1 the metric scores), and keeps the plan that plays
+best when each is rehearsed once on a copy of the environment (``PlannerConfig.hand_planning``,
+``choose_plan``); the performance replays the winner's rehearsal while it stays on its path.
+Then each control step it
 
 1. steers each forearm's slide along that plan: a quick move that ends as the note starts
    (a jump takes the steps the slide's servo needs, on a minimum-jerk path), in closed loop
@@ -37,12 +39,14 @@ The stages, one module each (read in this order):
 - :mod:`~pianist.control.planner.ik`: each finger's inverse kinematics (step 3);
 - :mod:`~pianist.control.planner.hand`: :class:`Hand`, one hand's indices and state, with
   the stages' methods;
+- :mod:`~pianist.control.planner.rehearsal`: a candidate plan played through on a fork of
+  the environment, and its replay;
 - :mod:`~pianist.control.planner.controller`: :class:`IKPlanner`, the plan choice and the
   step (step 4).
 """
 
 from pianist.control.planner.config import ENV_OPTIONS, PlannerConfig
-from pianist.control.planner.controller import IKPlanner
+from pianist.control.planner.controller import IKPlanner, forget_plans
 from pianist.control.planner.targets import FingerState
 
-__all__ = ["ENV_OPTIONS", "FingerState", "IKPlanner", "PlannerConfig"]
+__all__ = ["ENV_OPTIONS", "FingerState", "IKPlanner", "PlannerConfig", "forget_plans"]

@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any, Literal, Protocol
 
 import numpy as np
 
-from pianist.control.hand_plan import HandPlanCosts
+from pianist.control.hand_plan import HandPlanCosts, Objective
 
 if TYPE_CHECKING:
     import mujoco
@@ -25,6 +25,14 @@ if TYPE_CHECKING:
 
 FINGERS_PER_HAND = 5
 FINGER_PREFIXES = ("TH", "FF", "MF", "RF", "LF")
+#: The plans ``hand_planning="best"`` may choose from, by name: (kind, the plan chooses the
+#: fingers, the whole-piece plan's ``HandPlanCosts.objective``).
+PLAN_CANDIDATES: dict[str, tuple[str, bool, Objective]] = {
+    "frame": ("frame", False, "key_frames"),
+    "piece-song": ("piece", False, "key_frames"),
+    "piece": ("piece", True, "key_frames"),
+    "piece-f1": ("piece", True, "step_f1"),
+}
 
 
 @dataclass(frozen=True)
@@ -174,12 +182,24 @@ class PlannerConfig:
     piece after a joint plan of both hands has ``split`` the keys between them anew
     (:mod:`pianist.control.hand_split`; open-etude-12 0.766 against 0.767 for ``best``, and
     planning 4x slower, so not among the candidates of ``best``); or the ``best`` of the
-    frame-by-frame plan, the whole-piece plan with the song's fingering and the whole-piece
-    plan with its own, in that order of preference: a plan is chosen over the ones before it
-    only if it leaves at least ``piece_plan_margin`` more of the song's key-frames playable
-    (wide chords, jumps, a fingering the Shadow hand cannot span)."""
+    plans named in ``best_candidates``, chosen as ``choose_plan`` says."""
+    best_candidates: tuple[str, ...] = ("frame", "piece", "piece-f1")
+    """The plans ``hand_planning="best"`` chooses from (:data:`PLAN_CANDIDATES`), in order
+    of preference: ``frame`` by frame; over the whole piece with the plan's fingering
+    counting lost key-frames (``piece``) or the per-step F1 the metric scores
+    (``piece-f1``, ``HandPlanCosts.objective``); also known, ``piece-song``: the whole-piece
+    plan with the song's fingering (rehearsed, it played no piece of open-etude-12 or the
+    debug suites best, so it is not rehearsed by default)."""
+    choose_plan: Literal["rehearsal", "playable"] = "rehearsal"
+    """How ``best`` chooses: by playing each candidate through once on a copy of the
+    environment and keeping the best F1 (``rehearsal``, :mod:`rehearsal`; the first of
+    equals; the performance then replays the winner's actions while it stays on their path),
+    or by the key-frames each leaves playable (``playable``: a later plan is chosen only if
+    it adds ``piece_plan_margin`` of the song's key-frames; no simulation, but blind to how a
+    plan is executed: open-etude-12 0.777 against 0.79)."""
     piece_plan_margin: float = 0.02
-    """Share of the song's key-frames a later plan must add to be chosen (see above)."""
+    """With ``choose_plan="playable"``, the share of the song's key-frames a later plan must
+    add to be chosen (wide chords, jumps, a fingering the Shadow hand cannot span)."""
     playable_tolerance_m: float = 0.005
     """How far outside a finger's sampled reach a key still counts as playable when plans
     are compared (the sampled reach is a little conservative: the frame-by-frame plan's
@@ -236,6 +256,14 @@ class PlannerConfig:
     unsounded_latch: bool = True
     """Keep the push for the rest of the key's press once given (the key sounds only in the
     last 0.5 degrees of its travel: a finger easing off lets it flicker)."""
+
+    def __post_init__(self) -> None:
+        unknown = [name for name in self.best_candidates if name not in PLAN_CANDIDATES]
+        if not self.best_candidates or unknown:
+            raise ValueError(
+                f"best_candidates must be some of {', '.join(PLAN_CANDIDATES)}, "
+                f"not {list(self.best_candidates)}"
+            )
 
 
 #: Environment options the planner plays best with: the forearm's height slide added. In the

@@ -13,6 +13,7 @@ commands (:mod:`forearm`), the wrist's, each finger's joint angles (:mod:`target
 
 from __future__ import annotations
 
+import dataclasses
 import weakref
 from collections.abc import Callable
 from functools import partial
@@ -23,17 +24,21 @@ import mujoco
 import numpy as np
 
 from pianist.control.base import BaseController
-from pianist.control.coverage import Coverage, plan_coverage
+from pianist.control.coverage import Coverage, plan_coverage, plan_f1, playable_mask
+from pianist.control.hand_plan import Objective
 from pianist.control.hand_split import SplitCosts, split_hands
 from pianist.control.planner.config import (
     ENV_OPTIONS,
     FINGERS_PER_HAND,
     PAPER_ENV_OPTIONS,
+    PLAN_CANDIDATES,
     PlannerConfig,
 )
 from pianist.control.planner.forearm import _keep_forearms_apart
 from pianist.control.planner.hand import Hand
 from pianist.control.planner.postures import _use_postures
+from pianist.control.planner.rehearsal import Replay, f1_lost, rehearse
+from pianist.control.scoring import step_f1
 from pianist.env.handle import ControlHandle, control_handle
 from pianist.sim import constants as C
 from pianist.sim.scene import SceneOptions
@@ -41,12 +46,14 @@ from pianist.sim.scene import SceneOptions
 if TYPE_CHECKING:
     from pianist.music import Song
 
-#: What a hand remembers between steps (see :class:`FingerTargets`).
-_MEMORY = ("pressing", "stuck", "last_tips", "last_key", "unsounded")
+#: What a hand remembers between steps (see :class:`FingerTargets`), and what its last step
+#: decided (``state``, ``active``: read by recorders of the planner's decisions).
+_MEMORY = ("pressing", "stuck", "last_tips", "last_key", "unsounded", "state", "active")
 #: A hand's plan for a song: what ``IKPlanner._plan`` sets (read only once made).
 _PLAN_ARRAYS = ("tx_plan", "busy", "skip", "free", "shift_to", "tx_path", "tx_servo")
 #: Plans by (goal frames, scene options, config): a new episode of the same environment
-#: reuses its plan (up to ~1 s for a minute of music) instead of making it again.
+#: reuses its plan and rehearsal (planning takes up to ~1 s for a minute of music, rehearsal
+#: about two episodes) instead of making them again.
 _PLANS: dict[tuple[int, SceneOptions, PlannerConfig], tuple[Any, ...]] = {}
 _PLANS_KEPT = 8
 
@@ -65,6 +72,12 @@ class IKPlanner(BaseController):
         self.config = config or PlannerConfig()
         self._coverage: Coverage | None = None
         self._planned = False  # a plan is made at reset
+        self._replay: Replay | None = None  # the chosen plan's rehearsal, to play again
+        self.rehearsed: dict[str, float] = {}
+        """The F1 each candidate plan rehearsed to at the last reset, by name: for a rehearsal
+        given up once it could no longer win, the most it could still have reached; a
+        candidate whose plan is the same as an earlier one's is not rehearsed (absent), and
+        without rehearsal the dict is empty."""
 
     # ----------------------------------------------------------------------------- set-up
 
@@ -74,34 +87,30 @@ class IKPlanner(BaseController):
         return dict(PAPER_ENV_OPTIONS if self.config.paper_embodiment else ENV_OPTIONS)
 
     def reset(self, env: gym.Env, seed: int | None = None) -> None:
-        self._coverage, self._planned = None, True
+        self._coverage, self._planned, self._replay, self.rehearsed = None, True, None, {}
         self.setup(env)
         goal, handle, cfg = self.goal, self.handle, self.config
         key = (id(goal), handle.scene.options, cfg)
         cached = _PLANS.get(key)
         if cached is not None and cached[0]() is goal:
-            # The same song in the same scene (a new episode): the plan is the same.
-            self._restore(cached[1])
+            # The same song in the same scene (a new episode): the plan is the same, and so
+            # is its rehearsal (replayed only while the episode stays on its path).
+            _, chosen, self._replay, rehearsed = cached
+            self.rehearsed = dict(rehearsed)
+            self._restore(chosen)
             return
         if cfg.hand_planning == "best":
-            candidates = [("frame", False), ("piece", False), ("piece", True)]
-            plans = []
-            for kind, refinger in candidates:
-                playable = self._plan(goal, kind, refinger)
-                plans.append((playable, self._snapshot((kind, refinger))))
-            enough = max(n for n, _ in plans) - cfg.piece_plan_margin * goal.keys.sum()
-            chosen = next(plan for n, plan in plans if n >= enough)
-            self._restore(chosen)
+            chosen = self._choose_plan(goal, seed)
         else:
             refinger = cfg.hand_planning == "split" or (
                 cfg.refinger and cfg.hand_planning == "piece"
             )
-            self.plan_kind = (cfg.hand_planning, refinger)
+            self.plan_kind = (cfg.hand_planning, refinger, cfg.hand_plan.objective)
             self._plan(goal, *self.plan_kind)
             chosen = self._snapshot(self.plan_kind)
         if len(_PLANS) >= _PLANS_KEPT:
             del _PLANS[next(iter(_PLANS))]
-        _PLANS[key] = (weakref.ref(goal), chosen)
+        _PLANS[key] = (weakref.ref(goal), chosen, self._replay, dict(self.rehearsed))
 
     def setup(self, env: gym.Env) -> None:
         """The per-episode set-up without the plan: the keys' press points and heights, the
@@ -146,7 +155,67 @@ class IKPlanner(BaseController):
         self.finger_states = np.zeros((goal.num_frames, 2 * FINGERS_PER_HAND), dtype=np.int8)
         _use_postures(m, self.scratch, self.hands, cfg, handle.scene.options)
 
-    def _snapshot(self, kind: tuple[str, bool]) -> tuple[Any, ...]:
+    def _choose_plan(self, goal, seed: int | None) -> tuple[Any, ...]:
+        """Make each plan of ``best_candidates`` and choose one (``choose_plan``): by
+        rehearsal (:meth:`_rehearse_plans`, from the environment's state, or from its reset
+        with ``seed`` if it has not started an episode), or the first that leaves playable all but
+        ``piece_plan_margin`` of the most key-frames any leaves."""
+        cfg = self.config
+        plans = []
+        for name in cfg.best_candidates:
+            kind = PLAN_CANDIDATES[name]
+            playable = self._plan(goal, *kind)
+            plans.append((name, playable, plan_f1(self), self._snapshot(kind)))
+        if cfg.choose_plan == "rehearsal" and len(plans) > 1:
+            candidates = [(name, f1, plan) for name, _, f1, plan in plans]
+            chosen = self._rehearse_plans(candidates, seed)
+        else:
+            enough = max(p[1] for p in plans) - cfg.piece_plan_margin * goal.keys.sum()
+            chosen = next(plan for _, n, _, plan in plans if n >= enough)
+        self._restore(chosen)
+        return chosen
+
+    def _rehearse_plans(
+        self, plans: list[tuple[str, float, tuple[Any, ...]]], seed: int | None
+    ) -> tuple[Any, ...]:
+        """The plan of ``plans`` (name, plan F1, snapshot) that plays best, each played
+        through on a fork of the environment in its reset state (:mod:`rehearsal`); its
+        rehearsal is kept for the performance to replay.
+
+        The plans are rehearsed in order of their plan F1 (:func:`plan_f1`, the highest
+        first, so the likely winner is found early), a plan the same as one rehearsed
+        already is skipped, and a rehearsal is given up once what it has lost, with what
+        the steps to come lose even if they score their plan F1, reaches what the best so
+        far lost over the whole piece; of equals the first rehearsed wins.
+        """
+        handle, start = self.handle, self.memory()
+        fork = handle.fork(seed)
+        state = fork.snapshot()
+        best: tuple[float, Any, Replay] | None = None
+        rehearsed: list[tuple[Any, ...]] = []
+        for name, _, plan in sorted(plans, key=lambda p: -p[1]):  # stable: ties in order
+            if any(_same_plan(plan, other) for other in rehearsed):
+                continue  # it would play exactly as that one
+            rehearsed.append(plan)
+            fork.restore(state)
+            self._restore(plan)
+            self.set_memory(start)
+            give_up = np.inf if best is None else f1_lost(best[0], handle.num_steps)
+            # IKPlanner's own step: a subclass's (a recorder, a corrector) is not rehearsed.
+            act = partial(IKPlanner.act, self, None)
+            promise = step_f1(playable_mask(self), self.goal.keys)
+            f1, replay = rehearse(self, fork, give_up, act, promise)
+            self.rehearsed[name] = f1
+            if replay is not None and (best is None or f1 > best[0]):
+                best = (f1, plan, replay)
+        assert best is not None  # the first rehearsal is never given up
+        self.attach(handle)
+        self.set_memory(start)
+        self.finger_states[:] = 0
+        self._replay = best[2]
+        return best[1]
+
+    def _snapshot(self, kind: tuple[str, bool, Objective]) -> tuple[Any, ...]:
         """The plan just made (its arrays are rebound, never changed, by later plans)."""
         hands = [{name: getattr(hand, name) for name in _PLAN_ARRAYS} for hand in self.hands]
         return kind, self.fingers, hands
@@ -157,10 +226,11 @@ class IKPlanner(BaseController):
             hand.__dict__.update(arrays)
 
     def stats(self) -> dict[str, float]:
-        """What the plan leaves out or lifts for a shift, as shares of the due key-frames, and
-        the recall and F1 no controller with these hands' reach can pass
-        (:func:`pianist.control.coverage.plan_coverage`), for metrics.json (none before the
-        first reset)."""
+        """What the plan leaves out or lifts for a shift, as shares of the due key-frames, the
+        F1 of sounding exactly what it leaves playable, the recall and F1 no controller with
+        these hands' reach can pass (:func:`pianist.control.coverage.plan_coverage`), and the
+        F1 each candidate plan rehearsed to (:attr:`rehearsed`), for metrics.json (none
+        before the first reset)."""
         if not self._planned:
             return {}
         if self._coverage is None:
@@ -171,6 +241,8 @@ class IKPlanner(BaseController):
             "reach_ceiling_f1": c.ceiling_f1,
             "plan_left_out_share": c.share("left_out"),
             "plan_in_shift_share": c.share("in_shift"),
+            "plan_f1": c.plan_f1,
+            **{f"rehearsed_f1_{name}": f1 for name, f1 in self.rehearsed.items()},
         }
 
     def plan_arrays(self) -> dict[str, np.ndarray]:
@@ -203,11 +275,13 @@ class IKPlanner(BaseController):
             "finger_states": self.finger_states.copy(),
         }
 
-    def _plan(self, goal, kind: str, refinger: bool) -> int:
+    def _plan(self, goal, kind: str, refinger: bool, objective: Objective = "key_frames") -> int:
         """Plan the hands' positions, fingers and forearm paths (``kind``: "frame" by frame or
-        over the whole "piece"; ``refinger``: the piece plan chooses the fingers); returns the
+        over the whole "piece"; ``refinger``: the piece plan chooses the fingers;
+        ``objective``: what the piece plan counts, ``HandPlanCosts.objective``); returns the
         key-frames the plan leaves playable."""
         cfg = self.config
+        self._objective = objective
         piece = kind in ("piece", "split")
         # The finger (0-9) that presses each due key: the song's, or the plan's.
         self.fingers = goal.fingers.copy()
@@ -240,15 +314,25 @@ class IKPlanner(BaseController):
         if len(hands) == 2:
             first, second = hands
             if refinger and cfg.share_keys:
-                plan(second, take=first.skip, extra_cost=first.clearance(second, cfg))
+                plan(
+                    second,
+                    take=first.skip,
+                    extra_cost=first.clearance(second, cfg),
+                    other_kept=_kept(first),
+                )
                 own_second = second.skip & second.own_keys(goal)
-                plan(first, take=own_second, extra_cost=second.clearance(first, cfg))
+                plan(
+                    first,
+                    take=own_second,
+                    extra_cost=second.clearance(first, cfg),
+                    other_kept=_kept(second),
+                )
                 for a, b in ((first, second), (second, first)):
                     both = (a.key_fingers >= 0) & (b.key_fingers >= 0)
                     b_loses = both & a.own_keys(goal)
                     b.key_fingers[b_loses] = -1
             else:
-                plan(second)
+                plan(second, other_kept=_kept(first))
         for hand in self.hands:
             mine = hand.key_fingers >= 0
             self.fingers[mine] = hand.key_fingers[mine] + hand.finger_offset
@@ -262,7 +346,7 @@ class IKPlanner(BaseController):
             goal=goal,
             key_point=self.key_point,
             dt=self.dt,
-            costs=self.config.hand_plan,
+            costs=dataclasses.replace(self.config.hand_plan, objective=self._objective),
             refinger=refinger,
         )
 
@@ -299,6 +383,7 @@ class IKPlanner(BaseController):
                 take=mine[hand.side],
                 drop=goal.keys & ~mine[hand.side],
                 extra_cost=None if other is None else other.clearance(hand, cfg),
+                other_kept=None if other is None else _kept(other),
             )
         for hand in self.hands:
             played = hand.key_fingers >= 0
@@ -331,6 +416,7 @@ class IKPlanner(BaseController):
         the posture samples were made at reset."""
         for hand, hand_cfg in zip(self.hands, settings, strict=True):
             hand.settings = hand_cfg
+        self._replay = None  # rehearsed with the planner's own settings
 
     def finger_action_dims(self) -> np.ndarray:
         """(F,) the action dimensions of every finger joint (not the forearms or wrists)."""
@@ -340,6 +426,12 @@ class IKPlanner(BaseController):
         cfg, handle, m, scratch = self.config, self.handle, self.model, self.scratch
         T = self.goal.num_frames
         t = min(handle.step_index, T - 1)  # an episode that ran to its end: hold the last frame
+        replay = self._replay
+        if replay is not None and replay.on_path(handle.step_index, handle):
+            # Where the rehearsal was: its action, and the memory acting left it.
+            self.set_memory(replay.memories[handle.step_index])
+            self.finger_states[t] = replay.finger_states[t]
+            return replay.actions[handle.step_index].copy()
         ctrl = np.array(handle.data.ctrl)
         scratch.qpos[:] = handle.data.qpos
         press_frame = min(t + cfg.press_lead_frames, T - 1)
@@ -361,3 +453,24 @@ class IKPlanner(BaseController):
         action[:-1] = handle.ctrl_to_action(ctrl)
         action[-1] = 1.0 if self.goal.sustain[press_frame] else -1.0
         return action.astype(np.float32)
+
+
+def _same_plan(a: tuple[Any, ...], b: tuple[Any, ...]) -> bool:
+    """Whether two plan snapshots (:meth:`IKPlanner._snapshot`) give the same fingers and
+    the same per-hand arrays (their kinds may differ)."""
+    if not np.array_equal(a[1], b[1]):
+        return False
+    return all(
+        np.array_equal(x[name], y[name]) for x, y in zip(a[2], b[2], strict=True) for name in x
+    )
+
+
+def _kept(hand: Hand) -> np.ndarray:
+    """(T,) the keys a hand's whole-piece plan gives its fingers, per frame."""
+    return (hand.key_fingers >= 0).sum(axis=1).astype(float)
+
+
+def forget_plans() -> None:
+    """Empty the plan cache (:data:`_PLANS`): the next reset plans (and rehearses) anew, as
+    a first episode does (for timing one)."""
+    _PLANS.clear()

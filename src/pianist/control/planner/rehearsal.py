@@ -1,0 +1,130 @@
+"""Rehearsal: a candidate plan played through once on a private copy of the environment.
+
+Which of the planner's whole-piece plans plays a piece best is decided by playing each one:
+the plans' own estimates (the key-frames or the per-step F1 each leaves playable) rank them
+well where they differ in reach, and badly where they differ in how they are executed (a
+scale whose whole-piece plan shifts the hand two frames early for a thumb crossing plays
+0.77 where the frame-by-frame plan, with the same playable share, plays 0.96). The physics
+is deterministic, so a rehearsal's score is the score of the performance that follows it
+from the same state, and the performance can replay the winner's actions instead of
+computing them again (:class:`Replay`).
+
+Inputs: an :class:`~pianist.control.planner.IKPlanner` just reset (its plan made), and a
+fork of its environment in the reset state (:meth:`pianist.env.handle.ControlHandle.fork`).
+Output: the rehearsal's F1 (the metrics' per-step mean) and its :class:`Replay`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+import numpy as np
+
+from pianist.control.scoring import step_f1
+from pianist.env.handle import ControlHandle, control_handle
+
+
+class Rehearsable(Protocol):
+    """What a rehearsal needs of the planner (:class:`~pianist.control.planner.IKPlanner`)."""
+
+    finger_states: np.ndarray
+    """(T, 10) the fingers' states per step, as played."""
+
+    def attach(self, handle: ControlHandle) -> None: ...
+    def memory(self) -> list[dict[str, np.ndarray]]: ...
+    def act(self, observation: object = None) -> np.ndarray: ...
+
+
+def physics_state(handle: ControlHandle) -> tuple[np.ndarray, ...]:
+    """What the planner's next action depends on in the simulator: qpos, qvel, act, ctrl."""
+    data = handle.data
+    return (data.qpos.copy(), data.qvel.copy(), data.act.copy(), data.ctrl.copy())
+
+
+def same_state(a: tuple[np.ndarray, ...], b: tuple[np.ndarray, ...]) -> bool:
+    """Whether two :func:`physics_state` s are bit for bit the same."""
+    return all(np.array_equal(x, y) for x, y in zip(a, b, strict=True))
+
+
+@dataclass
+class Replay:
+    """A rehearsal's steps, to be played again from the same state.
+
+    Attributes:
+        actions: (T, A) the action played at each step.
+        states: per step, the :func:`physics_state` before its action.
+        memories: per step, the planner's memory after its action (what acting would have
+            left it, so the planner acts on live from any step where the performance leaves
+            the rehearsal's path).
+        finger_states: (T, 10) the fingers' states as rehearsed.
+    """
+
+    actions: np.ndarray
+    states: list[tuple[np.ndarray, ...]]
+    memories: list[list[dict[str, np.ndarray]]]
+    finger_states: np.ndarray
+
+    def on_path(self, step: int, handle: ControlHandle) -> bool:
+        """Whether the environment is where the rehearsal was before ``step``."""
+        return step < len(self.actions) and same_state(self.states[step], physics_state(handle))
+
+
+def rehearse(
+    planner: Rehearsable,
+    fork: Any,
+    give_up_at: float = np.inf,
+    act: Callable[[], np.ndarray] | None = None,
+    plan_f1: np.ndarray | None = None,
+) -> tuple[float, Replay | None]:
+    """Play ``planner``'s current plan through on ``fork`` (an environment in the state the
+    planner was reset in; it is stepped to the episode's end) and score it.
+
+    The planner acts on the fork while it rehearses; the caller attaches it back to its own
+    environment and resets its memory afterwards.
+
+    Args:
+        planner: the planner, its plan made.
+        fork: the environment to rehearse on.
+        give_up_at: stop as soon as the steps' F1 lost so far (the sum over steps of
+            1 - the step's F1), plus what the steps still to come lose at the least, reaches
+            this: another plan lost no more over the whole piece.
+        act: the planner's step (default ``planner.act(None)``; :class:`IKPlanner` passes
+            its own, so that a subclass's ``act`` is not rehearsed).
+        plan_f1: (T,) each step's F1 if exactly the plan's playable keys sound, taken as the
+            most a step to come scores (default 1). Not a strict bound: a key beyond the reach
+            model sometimes sounds (measured on five pieces and three plans each, the steps
+            scoring above it add at most 0.015 to an episode's F1, mostly under 0.003), so a
+            rehearsal is at times given up that would have won by less than that.
+    Returns:
+        The episode F1 (mean over the steps of each step's F1) and the :class:`Replay`; or,
+        given up, the most the F1 could still have reached and None.
+    """
+    handle = control_handle(fork)
+    planner.attach(handle)
+    steps = max(handle.num_steps, 1)
+    # least_lost[t]: the least F1 the steps after step t lose.
+    best_case = np.ones(steps) if plan_f1 is None else np.minimum(plan_f1[:steps], 1.0)
+    least_lost = np.r_[np.cumsum((1.0 - best_case)[::-1])[::-1][1:], 0.0]
+    actions, states, memories, f1s = [], [], [], []
+    lost, done = 0.0, False
+    while not done:
+        states.append(physics_state(handle))
+        action = act() if act is not None else planner.act(None)
+        _, _, terminated, truncated, info = fork.step(action)
+        done = terminated or truncated
+        actions.append(action)
+        memories.append(planner.memory())
+        f1s.append(float(step_f1(info["active_keys"], info["goal_keys"])))
+        lost += 1.0 - f1s[-1]
+        bound = lost + least_lost[min(len(f1s) - 1, steps - 1)]
+        if bound >= give_up_at and not done:
+            return float(1.0 - bound / steps), None
+    replay = Replay(np.array(actions), states, memories, planner.finger_states.copy())
+    return float(np.mean(f1s)), replay
+
+
+def f1_lost(f1: float, steps: int) -> float:
+    """The steps' F1 lost over an episode of ``steps`` steps with episode F1 ``f1``."""
+    return (1.0 - f1) * steps
