@@ -42,6 +42,7 @@ import gymnasium as gym
 import numpy as np
 
 from pianist.control.base import BaseController
+from pianist.control.planner.rehearsal import physics_state, same_state
 from pianist.env.handle import ControlHandle, control_handle
 
 if TYPE_CHECKING:
@@ -147,10 +148,6 @@ class _Trace:
         for part in self.per_finger:
             per_finger += part
         return float(sum(self.costs)), per_finger
-
-
-def _physics_state(data: Any) -> tuple[np.ndarray, ...]:
-    return (data.qpos.copy(), data.qvel.copy(), data.act.copy(), data.ctrl.copy())
 
 
 class Refiner(BaseController):
@@ -312,10 +309,7 @@ class Refiner(BaseController):
             and len(last.actions) >= 2
             and last.step + 1 == state.step
             and np.array_equal(last.actions[1], proposal)
-            and all(
-                np.array_equal(a, b)
-                for a, b in zip(last.states[0], _physics_state(data), strict=True)
-            )
+            and same_state(last.states[0], data)
         )
         if follows:
             assert last is not None and last.end is not None and last.memory is not None
@@ -388,7 +382,7 @@ class Refiner(BaseController):
             trace.per_finger.append(per_finger)
             if keep:
                 trace.actions.append(np.asarray(action).copy())
-                trace.states.append(_physics_state(self.ahead_handle.data))
+                trace.states.append(physics_state(self.ahead_handle.data))
             if terminated:
                 complete = False
                 break

@@ -24,7 +24,7 @@ import mujoco
 import numpy as np
 
 from pianist.control.base import BaseController
-from pianist.control.coverage import Coverage, plan_coverage, plan_f1, playable_mask
+from pianist.control.coverage import Coverage, plan_coverage, playable_mask
 from pianist.control.hand_plan import Objective
 from pianist.control.hand_split import SplitCosts, split_hands
 from pianist.control.planner.config import (
@@ -165,9 +165,10 @@ class IKPlanner(BaseController):
         for name in cfg.best_candidates:
             kind = PLAN_CANDIDATES[name]
             playable = self._plan(goal, *kind)
-            plans.append((name, playable, plan_f1(self), self._snapshot(kind)))
+            promise = step_f1(playable_mask(self), goal.keys)  # (T,) the plan's step F1
+            plans.append((name, playable, promise, self._snapshot(kind)))
         if cfg.choose_plan == "rehearsal" and len(plans) > 1:
-            candidates = [(name, f1, plan) for name, _, f1, plan in plans]
+            candidates = [(name, promise, plan) for name, _, promise, plan in plans]
             chosen = self._rehearse_plans(candidates, seed)
         else:
             enough = max(p[1] for p in plans) - cfg.piece_plan_margin * goal.keys.sum()
@@ -176,13 +177,14 @@ class IKPlanner(BaseController):
         return chosen
 
     def _rehearse_plans(
-        self, plans: list[tuple[str, float, tuple[Any, ...]]], seed: int | None
+        self, plans: list[tuple[str, np.ndarray, tuple[Any, ...]]], seed: int | None
     ) -> tuple[Any, ...]:
-        """The plan of ``plans`` (name, plan F1, snapshot) that plays best, each played
-        through on a fork of the environment in its reset state (:mod:`rehearsal`); its
-        rehearsal is kept for the performance to replay.
+        """The plan of ``plans`` (name, (T,) each step's F1 if exactly its playable keys
+        sound, snapshot) that plays best, each played through on a fork of the environment
+        in its reset state (:mod:`rehearsal`); its rehearsal is kept for the performance to
+        replay.
 
-        The plans are rehearsed in order of their plan F1 (:func:`plan_f1`, the highest
+        The plans are rehearsed in order of their plan F1 (the mean of those, the highest
         first, so the likely winner is found early), a plan the same as one rehearsed
         already is skipped, and a rehearsal is given up once what it has lost, with what
         the steps to come lose even if they score their plan F1, reaches what the best so
@@ -193,7 +195,7 @@ class IKPlanner(BaseController):
         state = fork.snapshot()
         best: tuple[float, Any, Replay] | None = None
         rehearsed: list[tuple[Any, ...]] = []
-        for name, _, plan in sorted(plans, key=lambda p: -p[1]):  # stable: ties in order
+        for name, promise, plan in sorted(plans, key=lambda p: -p[1].mean()):  # stable
             if any(_same_plan(plan, other) for other in rehearsed):
                 continue  # it would play exactly as that one
             rehearsed.append(plan)
@@ -203,7 +205,6 @@ class IKPlanner(BaseController):
             give_up = np.inf if best is None else f1_lost(best[0], handle.num_steps)
             # IKPlanner's own step: a subclass's (a recorder, a corrector) is not rehearsed.
             act = partial(IKPlanner.act, self, None)
-            promise = step_f1(playable_mask(self), self.goal.keys)
             f1, replay = rehearse(self, fork, give_up, act, promise)
             self.rehearsed[name] = f1
             if replay is not None and (best is None or f1 > best[0]):

@@ -38,15 +38,16 @@ class Rehearsable(Protocol):
     def act(self, observation: object = None) -> np.ndarray: ...
 
 
-def physics_state(handle: ControlHandle) -> tuple[np.ndarray, ...]:
-    """What the planner's next action depends on in the simulator: qpos, qvel, act, ctrl."""
-    data = handle.data
+def physics_state(data: Any) -> tuple[np.ndarray, ...]:
+    """What the planner's next action depends on in the simulator (``mujoco.MjData``):
+    copies of qpos, qvel, act and ctrl."""
     return (data.qpos.copy(), data.qvel.copy(), data.act.copy(), data.ctrl.copy())
 
 
-def same_state(a: tuple[np.ndarray, ...], b: tuple[np.ndarray, ...]) -> bool:
-    """Whether two :func:`physics_state` s are bit for bit the same."""
-    return all(np.array_equal(x, y) for x, y in zip(a, b, strict=True))
+def same_state(state: tuple[np.ndarray, ...], data: Any) -> bool:
+    """Whether the simulator ``data`` is bit for bit at a :func:`physics_state` ``state``."""
+    now = (data.qpos, data.qvel, data.act, data.ctrl)
+    return all(np.array_equal(x, y) for x, y in zip(state, now, strict=True))
 
 
 @dataclass
@@ -69,7 +70,7 @@ class Replay:
 
     def on_path(self, step: int, handle: ControlHandle) -> bool:
         """Whether the environment is where the rehearsal was before ``step``."""
-        return step < len(self.actions) and same_state(self.states[step], physics_state(handle))
+        return step < len(self.actions) and same_state(self.states[step], handle.data)
 
 
 def rehearse(
@@ -111,7 +112,7 @@ def rehearse(
     actions, states, memories, f1s = [], [], [], []
     lost, done = 0.0, False
     while not done:
-        states.append(physics_state(handle))
+        states.append(physics_state(handle.data))
         action = act() if act is not None else planner.act(None)
         _, _, terminated, truncated, info = fork.step(action)
         done = terminated or truncated
