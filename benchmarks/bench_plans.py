@@ -4,11 +4,12 @@ For every song and physics preset: each plan of :data:`pianist.control.planner.c
 PLAN_CANDIDATES` played once on its own (seed 0; the planner with ``hand_planning`` set to
 it), with what its plan promises beside what it plays: the share of the due key-frames it
 leaves playable and its plan F1 (:func:`pianist.control.coverage.plan_f1`: a player sounding
-exactly those key-frames). Then the default planner (``choose_plan="rehearsal"``: the best
-rehearsed of ``best_candidates``) and the chooser it replaced (``choose_plan="playable"``
-over frame, piece-song and piece: the first plan within ``piece_plan_margin`` of the most
-playable key-frames), each timed from a cold start (plans made and rehearsed anew): their F1,
-the plan each chose, and their real-time factors.
+exactly those key-frames). Then the choosers (:data:`CHOOSERS`): the default planner
+(``choose_plan="rehearsal"``: the best rehearsed of ``best_candidates``), the same
+rehearsing the three candidates it used to (``rehearsal-3``), and the chooser before
+rehearsal (``choose_plan="playable"`` over frame, piece-song and piece: the first plan
+within ``piece_plan_margin`` of the most playable key-frames), each timed from a cold start
+(plans made and rehearsed anew): their F1, the plan each chose, and their real-time factors.
 
 Run: ``python benchmarks/bench_plans.py [--suite open-etude-12 | --songs a,b]
 [--presets fast,faithful] [--json out.json]``.
@@ -30,10 +31,15 @@ from pianist.eval import run_episode
 from pianist.eval.session import make_env
 from pianist.music import list_songs
 
-#: The chooser before rehearsal: by playable key-frames over these candidates.
-PLAYABLE_CHOOSER = PlannerConfig(
-    choose_plan="playable", best_candidates=("frame", "piece-song", "piece")
-)
+#: The plan choosers compared, by label: the default; the default rehearsing the whole-piece
+#: plan that counts key-frames too; the chooser before rehearsal, by playable key-frames.
+CHOOSERS = {
+    "rehearsal": PlannerConfig(),
+    "rehearsal-3": PlannerConfig(best_candidates=("frame", "piece", "piece-f1")),
+    "playable": PlannerConfig(
+        choose_plan="playable", best_candidates=("frame", "piece-song", "piece")
+    ),
+}
 
 
 def candidate_config(name: str) -> PlannerConfig:
@@ -69,7 +75,7 @@ def bench_song(song: str, physics: str) -> dict:
             "playable_share": coverage.share("playable"),
             "plan_f1": coverage.plan_f1,
         }
-    for label, config in (("rehearsal", PlannerConfig()), ("playable", PLAYABLE_CHOOSER)):
+    for label, config in CHOOSERS.items():
         played, planner = _played(song, physics, config)
         row[label] = {**played, "chosen": _name(planner.plan_kind)}
     return row
@@ -92,7 +98,8 @@ def main() -> None:
     print(
         f"{'song':34s} {'preset':8s} "
         + " ".join(f"{n:>10s}" for n in names)
-        + f" {'rehearsal':>16s} {'playable':>16s} {'rtf':>10s}"
+        + "".join(f" {label:>16s}" for label in CHOOSERS)
+        + f" {'rtf':>15s}"
     )
     for song in songs:
         results["songs"][song] = {}
@@ -100,24 +107,19 @@ def main() -> None:
             row = bench_song(song, physics)
             results["songs"][song][physics] = row
             cells = " ".join(f"{row['candidates'][n]['f1']:10.3f}" for n in names)
-            r, p = row["rehearsal"], row["playable"]
-            print(
-                f"{song[:34]:34s} {physics:8s} {cells} {r['f1']:6.3f} {r['chosen']:>9s} "
-                f"{p['f1']:6.3f} {p['chosen']:>9s} {r['realtime_factor']:4.1f}/"
-                f"{p['realtime_factor']:4.1f}",
-                flush=True,
+            chosen = "".join(
+                f" {row[label]['f1']:6.3f} {row[label]['chosen']:>9s}" for label in CHOOSERS
             )
+            rtf = "/".join(f"{row[label]['realtime_factor']:4.1f}" for label in CHOOSERS)
+            print(f"{song[:34]:34s} {physics:8s} {cells}{chosen} {rtf}", flush=True)
     for physics in args.presets.split(","):
         rows = [by[physics] for by in results["songs"].values()]
         mean = {
-            "rehearsal_f1": float(np.mean([r["rehearsal"]["f1"] for r in rows])),
-            "playable_f1": float(np.mean([r["playable"]["f1"] for r in rows])),
-            "rehearsal_rtf_median": float(
-                np.median([r["rehearsal"]["realtime_factor"] for r in rows])
-            ),
-            "playable_rtf_median": float(
-                np.median([r["playable"]["realtime_factor"] for r in rows])
-            ),
+            **{f"{c}_f1": float(np.mean([r[c]["f1"] for r in rows])) for c in CHOOSERS},
+            **{
+                f"{c}_rtf_median": float(np.median([r[c]["realtime_factor"] for r in rows]))
+                for c in CHOOSERS
+            },
             **{
                 f"{n}_{k}": float(np.mean([r["candidates"][n][k] for r in rows]))
                 for n in names

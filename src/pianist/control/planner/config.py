@@ -183,13 +183,16 @@ class PlannerConfig:
     (:mod:`pianist.control.hand_split`; open-etude-12 0.766 against 0.767 for ``best``, and
     planning 4x slower, so not among the candidates of ``best``); or the ``best`` of the
     plans named in ``best_candidates``, chosen as ``choose_plan`` says."""
-    best_candidates: tuple[str, ...] = ("frame", "piece", "piece-f1")
+    best_candidates: tuple[str, ...] = ("frame", "piece-f1")
     """The plans ``hand_planning="best"`` chooses from (:data:`PLAN_CANDIDATES`), in order
-    of preference: ``frame`` by frame; over the whole piece with the plan's fingering
-    counting lost key-frames (``piece``) or the per-step F1 the metric scores
-    (``piece-f1``, ``HandPlanCosts.objective``); also known, ``piece-song``: the whole-piece
-    plan with the song's fingering (rehearsed, it played no piece of open-etude-12 or the
-    debug suites best, so it is not rehearsed by default)."""
+    of preference: ``frame`` by frame, or over the whole piece with the plan's fingering
+    counting the per-step F1 the metric scores (``piece-f1``, ``HandPlanCosts.objective``).
+    Also known: ``piece``, the same counting lost key-frames, and ``piece-song``, the
+    whole-piece plan with the song's fingering. Rehearsing ``piece`` too costs 0.8 of an
+    episode more per cold start for 0.001 F1 (open-etude-12 faithful 0.7823 -> 0.7835, fast
+    0.7880 -> 0.7882, the debug suites the same; 0.004 in the paper's embodiment:
+    docs/planner.md); ``piece-song`` played no piece of open-etude-12 or the debug suites
+    best."""
     choose_plan: Literal["rehearsal", "playable"] = "rehearsal"
     """How ``best`` chooses: by playing each candidate through once on a copy of the
     environment and keeping the best F1 (``rehearsal``, :mod:`rehearsal`; the first of
