@@ -58,6 +58,10 @@ def test_play_writes_metrics_midi_and_actions(tmp_path, capsys):
     for key in ("precision", "recall", "f1", "sustain_f1", "steps", "seconds"):
         assert key in metrics
     assert metrics["steps"] == 81 and metrics["seconds"] == pytest.approx(4.05)
+    # The errors by kind: the zero controller's hands sound none of the 16 notes.
+    assert metrics["recall"] == 0.0 and metrics["notes"] == 16
+    assert metrics["notes_never_share"] == 1.0 and metrics["lost_never_share"] == 1.0
+    assert metrics["false_other_share"] == 0.0
     actions = np.load(out / "actions.npy")
     assert actions.shape == (81, 39)
     mido.MidiFile(out / "performance.mid")  # a readable MIDI file

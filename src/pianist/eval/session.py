@@ -20,6 +20,7 @@ import numpy as np
 from pianist.env import PianoEnv
 from pianist.env.handle import control_handle
 from pianist.eval.episode import Episode
+from pianist.eval.errors import note_errors
 from pianist.eval.rollout import run_episode
 from pianist.music import Song, load_song
 
@@ -152,6 +153,7 @@ def play(
         episode = run_episode(env, controller, seed=seed, progress=progress)
         wall = time.perf_counter() - start
         metrics: dict[str, Any] = episode.metrics()
+        metrics.update(note_errors(episode.active_keys, episode.goal_keys))
         # Planning controllers report their own timing and settings.
         stats = getattr(controller, "stats", None)
         metrics.update(stats() if stats is not None else {})
