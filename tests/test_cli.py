@@ -62,6 +62,7 @@ def test_play_writes_metrics_midi_and_actions(tmp_path, capsys):
     assert metrics["recall"] == 0.0 and metrics["notes"] == 16
     assert metrics["notes_never_share"] == 1.0 and metrics["lost_never_share"] == 1.0
     assert metrics["false_other_share"] == 0.0
+    assert "missed: 100.0 % in notes never sounding" in capsys.readouterr().out
     actions = np.load(out / "actions.npy")
     assert actions.shape == (81, 39)
     mido.MidiFile(out / "performance.mid")  # a readable MIDI file

@@ -61,14 +61,13 @@ def note_errors(pressed: np.ndarray, goal: np.ndarray, window: int = 2) -> dict[
     pressed, goal = _as_bool_pair(pressed, goal, ndim=2)
     if window < 1:
         raise ValueError(f"window must be >= 1 frame, not {window}")
-    late_notes = never_notes = 0
+    notes = late_notes = never_notes = 0
     lost = {"late": 0, "dropout": 0, "never": 0}
-    delays: list[int] = []
-    starts_all = []
+    delays: list[int] = []  # frames from each sounding note's start to its first sound
     for key in np.flatnonzero(goal.any(axis=0)).tolist():
         edges = np.diff(goal[:, key].astype(np.int8), prepend=0, append=0)
         starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)  # ends: exclusive
-        starts_all.append(starts)
+        notes += len(starts)
         for start, end in zip(starts.tolist(), ends.tolist(), strict=True):
             sounding = pressed[start:end, key]
             if not sounding.any():
@@ -80,7 +79,6 @@ def note_errors(pressed: np.ndarray, goal: np.ndarray, window: int = 2) -> dict[
             late_notes += first > 0
             lost["late"] += first
             lost["dropout"] += int(np.count_nonzero(~sounding[first:]))
-    notes = sum(len(s) for s in starts_all)
     due = int(np.count_nonzero(goal))
     # False key-frames by the nearest due frames of the same key, before and after.
     false = pressed & ~goal
