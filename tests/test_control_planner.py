@@ -12,6 +12,7 @@ from pianist.env import PianoEnv
 from pianist.eval import run_episode
 from pianist.eval.session import make_env
 from pianist.music import Note, Song, load_song
+from pianist.music.transforms import window
 from pianist.sim.constants import BLACK_KEY_MASK, FINGERTIP_CAPSULE_RADIUS_M
 
 
@@ -608,3 +609,25 @@ def test_a_pressing_finger_pushes_harder_when_the_keys_bend_the_wrist_up():
         mujoco.mj_kinematics(m, scratch)
         tips[bent] = scratch.site_xpos[hand.sites[finger]].copy()
     assert tips[0.15][2] < tips[0.0][2] - 0.002, tips
+
+
+def test_a_re_strike_is_pushed_down_again_from_its_first_step():
+    # The mazurka's repeated chords (3-7 s: 43 keys struck again a frame after they were let
+    # up). Pushed from the first step of the re-strike (``restrike_push_rad``), more of them
+    # sound on time than with the servo alone (measured 35 against 31; F1 0.808 / 0.777).
+    song = window(load_song("chopin-mazurka-op6-no2"), 3.0, 7.0)
+    on_time, f1 = [], []
+    for push in (PlannerConfig().restrike_push_rad, (0.0,) * 5):
+        env = PianoEnv(song, physics="fast", **ENV_OPTIONS)
+        planner = IKPlanner(PlannerConfig(restrike_push_rad=push))
+        episode = run_episode(env, planner, seed=0)
+        goal = env.goal.keys
+        again = np.zeros_like(goal)
+        again[2:] = goal[2:] & ~goal[1:-1] & goal[:-2]  # due, let up a frame before
+        on_time.append(int((episode.active_keys & again).sum()))
+        f1.append(episode.metrics()["f1"])
+        states = planner.plan_arrays()["finger_states"]
+        pushed_again = (states[1:] == FingerState.PUSHING) & (states[:-1] == FingerState.RESTRIKING)
+        assert pushed_again.any() == any(p > 0 for p in push)
+    assert again.sum() == 43
+    assert on_time[0] >= on_time[1] + 2 and f1[0] > f1[1]

@@ -253,6 +253,14 @@ class PlannerConfig:
     """Added for a finger that has pressed its key for ``unsounded_steps`` without sounding
     it: resting on the key's top, too weak to push it down (the little finger above all)."""
     unsounded_steps: int = 2
+    restrike_push_rad: tuple[float, float, float, float, float] = (0.0, 0.3, 0.3, 0.3, 0.3)
+    """Extra push (thumb to little finger) of a finger pressing again, at the first step, the
+    key it let up the step before (a re-strike: two notes of one key a frame apart). The key
+    has that one step to go down again, and from where the finger rose (a median 7-12 mm
+    above the key) the servo alone sounds it late by 0.6-1.1 frames on average per finger
+    (open-etude-12, fast); pushed, by 0.2-0.8. Open-etude-12 gains 0.004 (0.782 -> 0.786
+    faithful, 0.788 -> 0.792 fast, noisy means alike), the debug songs keep their figures.
+    Not the thumb: pushed, it sounds the key beside it (Twinkle 0.973 -> 0.971)."""
     paper_embodiment: bool = False
     """Play in the paper's scene (forearm slides ``tx`` and ``ty`` only) instead of declaring
     the height slide (:data:`ENV_OPTIONS`): the thumb then cannot press a white key."""

@@ -59,6 +59,7 @@ class Hand(HandPostures, ForearmPlan, FingerTargets, FingerIK):
         self.last_tips = np.zeros((FINGERS_PER_HAND, 3))
         self.last_key = np.full(FINGERS_PER_HAND, -1)  # key each finger pressed last, or -1
         self.unsounded = np.zeros(FINGERS_PER_HAND, dtype=int)  # see FingerTargets
+        self.repress = np.zeros(FINGERS_PER_HAND, dtype=bool)
         self.state = np.zeros(FINGERS_PER_HAND, dtype=np.int8)  # FingerState.LIFTED
         self.active = np.zeros(FINGERS_PER_HAND, dtype=bool)
         # Execution settings of this hand alone (IKPlanner.set_hand_settings); None: the

@@ -28,6 +28,7 @@ class FingerIK:
     jacp: np.ndarray
     pressing: np.ndarray
     unsounded: np.ndarray
+    repress: np.ndarray
     wrist_bent_up: float  # set by ``HandPostures.set_wrist`` each step
 
     def solve(self, m, scratch, targets: np.ndarray, active: np.ndarray, cfg) -> None:
@@ -70,6 +71,8 @@ class FingerIK:
             amount = cfg.thumb_push_rad if f == 0 else cfg.finger_push_rad[f - 1]
             if self.unsounded[f] >= cfg.unsounded_steps:  # pressing its key, not sounding it
                 amount += cfg.unsounded_push_rad
+            if self.repress[f]:  # pressing again the key it let up last step
+                amount += cfg.restrike_push_rad[f]
             # The other fingers' keys bend the wrist up and lift this one off its key.
             amount += cfg.bent_wrist_push * self.wrist_bent_up
             mujoco.mj_jacSite(m, scratch, self.jacp, None, finger.site)

@@ -32,7 +32,8 @@ class FingerState(IntEnum):
     PRESSING = 2
     """Sent ``key_depth`` below its key's top, so the servo holds the key down."""
     PUSHING = 3
-    """Pressing, and pushed further down: the key has not sounded for ``unsounded_steps``."""
+    """Pressing, and pushed further down: the key has not sounded for ``unsounded_steps``, or
+    the finger presses again the key it let up the step before (``restrike_push_rad``)."""
     RESTRIKING = 4
     """Its key is still down and is due again: let up first (``release_height_m``)."""
     TRAVELLING = 5
@@ -57,6 +58,9 @@ class FingerTargets:
     last_tips: np.ndarray
     last_key: np.ndarray
     unsounded: np.ndarray
+    repress: np.ndarray
+    """(5,) bool: fingers pressing again this step the key they let up the step before (a
+    re-strike); the IK pushes them harder (``restrike_push_rad``)."""
     state: np.ndarray
     """(5,) the :class:`FingerState` of each finger this step."""
     active: np.ndarray
@@ -82,6 +86,7 @@ class FingerTargets:
         targets = self.lift_tips + origin
         active = np.zeros(FINGERS_PER_HAND, dtype=bool)
         self.pressing = np.zeros(FINGERS_PER_HAND, dtype=bool)
+        let_up = self.state == FingerState.RESTRIKING  # last step's states
         self.state = np.full(FINGERS_PER_HAND, FingerState.LIFTED, dtype=np.int8)
         if self.free[now]:
             self.last_key[:] = -1
@@ -163,7 +168,9 @@ class FingerTargets:
                     hovering[finger] = True
                     self.state[finger] = FingerState.HOVERING
         pushed = self.count_unsounded(pressed_key, key_down, cfg)
-        self.state[pushed] = FingerState.PUSHING
+        # A re-strike has one step to bring its key down again: pushed from the first.
+        self.repress = self.pressing & let_up & (np.asarray(cfg.restrike_push_rad) > 0)
+        self.state[pushed | self.repress] = FingerState.PUSHING
         # A finger keeps its last key while it presses or hovers on its way to the next one.
         self.last_key = np.where(self.pressing, pressed_key, np.where(hovering, self.last_key, -1))
         # Count the steps each hovering finger has stood still.
