@@ -166,18 +166,21 @@ class Play:
             f"F1 {metrics['f1']:.3f}{ceiling_f1}{song_f1}  sustain F1 {metrics['sustain_f1']:.3f}  "
             f"({metrics['steps']} steps, {metrics['realtime_factor']:.1f}x real time) -> {self.out}"
         )
-        _out(errors_line(metrics))
+        _out(_errors_line(metrics))
 
 
-def errors_line(metrics: dict) -> str:
+def _errors_line(metrics: dict) -> str:
     """One line of the errors by kind (:func:`pianist.eval.note_errors`), in % of the due
     key-frames: what the missed ones missed, and what the false ones were."""
-    share = {k: 100 * metrics[k] for k in metrics if k.startswith(("lost_", "false_"))}
+
+    def pct(name: str) -> str:
+        return f"{100 * metrics[name]:.1f} %"
+
     return (
-        f"  of the due key-frames, missed: {share['lost_never_share']:.1f} % in notes never "
-        f"sounding, {share['lost_late_share']:.1f} % before a late note sounded, "
-        f"{share['lost_dropout_share']:.1f} % after a note sounded; false: "
-        f"{share['false_held_share']:.1f} % held on, {share['false_early_share']:.1f} % early, "
-        f"{share['false_other_share']:.1f} % other keys "
+        f"  of the due key-frames, missed: {pct('lost_never_share')} in notes never sounding, "
+        f"{pct('lost_late_share')} before a late note sounded, "
+        f"{pct('lost_dropout_share')} after a note sounded; false: "
+        f"{pct('false_held_share')} held on, {pct('false_early_share')} early, "
+        f"{pct('false_other_share')} other keys "
         f"({100 * metrics['notes_late_share']:.0f} % of the {metrics['notes']:.0f} notes late)"
     )

@@ -24,20 +24,6 @@ import numpy as np
 
 from pianist.eval.metrics import _as_bool_pair
 
-#: The keys :func:`note_errors` returns.
-ERROR_KEYS = (
-    "notes",
-    "notes_late_share",
-    "notes_never_share",
-    "onset_delay_mean_frames",
-    "lost_late_share",
-    "lost_dropout_share",
-    "lost_never_share",
-    "false_held_share",
-    "false_early_share",
-    "false_other_share",
-)
-
 
 def note_errors(pressed: np.ndarray, goal: np.ndarray, window: int = 2) -> dict[str, float]:
     """Count an episode's errors by kind (module docstring).
