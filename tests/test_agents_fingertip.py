@@ -146,6 +146,33 @@ def test_the_decoding_plays_the_experts_decisions_as_well_as_the_expert(fingerin
     assert lifted.metrics["f1"] < 0.1  # the modes decide: every finger lifted plays nothing
 
 
+class _ReplayPushes(_Replay):
+    """The expert's decisions played through the decoding, noting which fingers each side
+    pushes as a re-strike at every step."""
+
+    def __init__(self):
+        super().__init__()
+        self.pushes: list[tuple[np.ndarray, np.ndarray]] = []
+
+    def act(self, observation=None):
+        action = super().act(observation)
+        mine = np.concatenate([h.repress for h in self.stages.hands])
+        theirs = np.concatenate([h.repress for h in self.expert.hands])
+        self.pushes.append((mine.copy(), theirs.copy()))
+        return action
+
+
+def test_the_decoding_pushes_a_restrike_where_the_expert_does():
+    # Twinkle repeats its notes a frame apart: each finger lets its key up for one step and
+    # presses it again, pushed from that step as the planner pushes it.
+    replay = _ReplayPushes()
+    play("twinkle-twinkle", replay, physics="fast", seed=0)
+    mine = np.array([m for m, _ in replay.pushes])
+    theirs = np.array([t for _, t in replay.pushes])
+    assert theirs.sum() >= 5  # the song has re-strikes, and the expert pushes them
+    np.testing.assert_array_equal(mine, theirs)
+
+
 # A piece whose plan re-fingers it: the chorale's inner voices are given to fingers that reach
 # them from the hand positions the planner chose.
 PIECE = "bach-chorale-bwv66-6"
