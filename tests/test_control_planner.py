@@ -381,6 +381,43 @@ def test_a_shift_holds_the_keys_before_it_as_long_as_it_can():
         IKPlanner(PlannerConfig(shift_lead_frames=2)).reset(env)
 
 
+def _held_then_leap() -> Song:
+    """The right hand holds E4 and G4 (0.5-1.6 s) while a melody two octaves up starts at
+    1.2 s; the left hand is busy with a bass far below, so it cannot take either."""
+    notes = [Note(64, 0.5, 1.6, finger=1), Note(67, 0.5, 1.6, finger=3)]
+    for i, key in enumerate((84, 86, 88, 86, 84, 86, 88, 86)):
+        notes.append(Note(key, 1.2 + 0.25 * i, 1.4 + 0.25 * i, finger=(1, 2, 3, 2)[i % 4]))
+    for i in range(12):
+        notes.append(Note((36, 43)[i % 2], 0.5 + 0.25 * i, 0.7 + 0.25 * i, finger=(6, 8)[i % 2]))
+    return Song(tuple(notes), name="held-then-leap")
+
+
+def test_a_shift_leaves_later_when_the_keys_it_holds_outweigh_the_notes_it_moves_for():
+    # Moving up for the melody on time lets the held chord go for the jump's frames; leaving
+    # later keeps it and loses the melody's notes until the hand is there instead.
+    song = _held_then_leap()
+    held, free, f1 = {}, {}, {}
+    for delay in (0, 8):
+        env = PianoEnv(song, physics="fast", **ENV_OPTIONS)
+        planner = IKPlanner(PlannerConfig(shift_delay_max_frames=delay))
+        episode = run_episode(env, planner, seed=0)
+        right = planner.hands[0]
+        assert planner.plan_kind[0] == "piece" and right.side == "right"
+        down = np.asarray(episode.active_keys)
+        held[delay] = int(down[:, 64 - 21].sum() + down[:, 67 - 21].sum())
+        free[delay] = np.flatnonzero(right.free)
+        f1[delay] = episode.metrics()["f1"]
+        # The plan as followed holds the old place through the shift's note frame (the path
+        # ends moves a frame early), and through the shift's delay.
+        moved = np.flatnonzero(right.tx_held != right.tx_plan)
+        assert len(moved) == free[delay][0] - free[0][0] + 1
+    assert free[8][0] > free[0][0] and len(free[8]) == len(free[0])  # the same jump, later
+    assert held[8] >= held[0] + 6  # E4 and G4 sound for longer (both keys, 3 frames or more)
+    assert f1[8] > f1[0]
+    with pytest.raises(ValueError, match="shift_delay_max_frames"):
+        PlannerConfig(shift_delay_max_frames=-1)
+
+
 def test_posture_samples_are_made_once_per_scene_and_reused_exactly(monkeypatch):
     from pianist.control.planner import postures as module
 

@@ -94,6 +94,15 @@ class PlannerConfig:
     note's frame begins and its fingers press from the hover they travelled in. The keys
     before the shift are then held a frame longer (with 1, the D major scale's F#4 fell
     silent for two frames before the thumb passed under, now for one)."""
+    shift_delay_max_frames: int = 8
+    """Frames a shift of the whole-piece plan may leave later than planned, so that the hand
+    holds its keys longer and the next notes lose their first frames instead, when fewer of
+    its due key-frames fall in the moving window so (:meth:`ForearmPlan.plan_commands`).
+    0: never. Open-etude-12 0.792 -> 0.804 fast, 0.786 -> 0.796 faithful (docs/planner.md)."""
+    shift_delay_cost: float = 0.5
+    """Key-frames each frame of a shift's delay is charged besides those it loses: with none,
+    a delay that saves one key-frame of a chord cost `c-major-chords` 0.005 F1 (a hand that
+    arrives later presses its next notes no sooner); at 1 open-etude-12 gains only 0.005."""
     hand_height_m: float = -0.03
     """Height command of the forearm's ``tz`` slide (when the scene has one)."""
     height_feedback: float = 3.0
@@ -274,6 +283,11 @@ class PlannerConfig:
             raise ValueError(
                 f"best_candidates must be some of {', '.join(PLAN_CANDIDATES)}, "
                 f"not {list(self.best_candidates)}"
+            )
+        if self.shift_delay_max_frames < 0 or self.shift_delay_cost < 0:
+            raise ValueError(
+                "shift_delay_max_frames and shift_delay_cost must be >= 0, not "
+                f"{self.shift_delay_max_frames} and {self.shift_delay_cost}"
             )
 
 

@@ -50,7 +50,7 @@ if TYPE_CHECKING:
 #: decided (``state``, ``active``: read by recorders of the planner's decisions).
 _MEMORY = ("pressing", "stuck", "last_tips", "last_key", "unsounded", "state", "active")
 #: A hand's plan for a song: what ``IKPlanner._plan`` sets (read only once made).
-_PLAN_ARRAYS = ("tx_plan", "busy", "skip", "free", "shift_to", "tx_path", "tx_servo")
+_PLAN_ARRAYS = ("tx_plan", "tx_held", "busy", "skip", "free", "shift_to", "tx_path", "tx_servo")
 #: Plans by (goal frames, scene options, config): a new episode of the same environment
 #: reuses its plan and rehearsal (planning takes up to ~1 s for a minute of music, rehearsal
 #: about two episodes) instead of making them again.
@@ -296,7 +296,10 @@ class IKPlanner(BaseController):
         if len(self.hands) == 2:
             _keep_forearms_apart(self.hands[0], self.hands[1], cfg.forearm_separation_m)
         for hand in self.hands:
-            hand.plan_commands(self.model, self.dt, cfg, multi_step=piece)
+            hand.tx_held = hand.tx_plan  # until its own commands are planned
+        for i, hand in enumerate(self.hands):
+            other = self.hands[1 - i] if len(self.hands) == 2 else None
+            hand.plan_commands(self.model, self.dt, cfg, piece, hand.played_counts(self), other)
         return sum(hand.playable_keyframes(self) for hand in self.hands)
 
     def _plan_piece(self, goal, refinger: bool) -> None:

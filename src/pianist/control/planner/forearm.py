@@ -13,7 +13,9 @@ Planned at reset (methods of :class:`ForearmPlan`; T frames, positions are the f
 - ``playable_keyframes``: how many key-frames a plan leaves playable (to choose a plan);
 - ``plan_commands``: the reference path ``tx_path`` (T + 2, 2) (m, m/s at the end of each
   step), the shifts (``free`` (T,) bool: the fingers let go; ``shift_to`` (T,) int: the
-  frame moved to) and the slide's servo model ``tx_servo`` (:class:`_Servo`).
+  frame moved to; each shift timed to hold the keys before it when that loses less,
+  ``_shift_delays``, and ``tx_held`` (T,) the plan so followed) and the slide's servo model
+  ``tx_servo`` (:class:`_Servo`).
 
 Each step ``command_forearm`` writes the slides' commands (m) into ``ctrl``: ``tx`` along
 the path in closed loop, ``tz`` (when present) held at the playing height.
@@ -76,6 +78,9 @@ class ForearmPlan:
     finger_offset: int
     root_y: float
     tx_qpos: int
+    tx_held: np.ndarray
+    """(T,) the plan as followed: each shift's old position held until it leaves (set with
+    the plan, then by :meth:`plan_commands`)."""
     tx_dof: int
     tx_range: np.ndarray
     tx_actuator: int
@@ -259,7 +264,22 @@ class ForearmPlan:
         mask[frames[inside], keys[inside]] = True
         return mask
 
-    def plan_commands(self, m, dt: float, cfg: PlannerConfig, multi_step: bool) -> None:
+    def played_counts(self, planner: PlannerState) -> np.ndarray:
+        """(T,) int: how many due keys this hand's plan gives its fingers at each frame (its
+        keys, not skipped)."""
+        finger = planner.fingers - self.finger_offset
+        mine = (finger >= 0) & (finger < FINGERS_PER_HAND)
+        return (planner.goal.keys & mine & ~self.skip).sum(axis=1)
+
+    def plan_commands(
+        self,
+        m,
+        dt: float,
+        cfg: PlannerConfig,
+        multi_step: bool,
+        played: np.ndarray | None = None,
+        other: ForearmPlan | None = None,
+    ) -> None:
         """The forearm's reference path along the keyboard, ``tx_path`` (T + 2, 2): position
         and velocity wanted at the end of every step.
 
@@ -273,6 +293,13 @@ class ForearmPlan:
         slide's servo along that path in closed loop. Left alone, the critically damped
         servo needs ~0.45 s to cover 90 % of a jump, which makes the hand late for every
         shift (and for the first note, which the hands reach from their home position).
+
+        A shift lets go of the keys the hand still holds while it moves. Given ``played``
+        (T,) (:meth:`played_counts`), each shift may leave up to ``shift_delay_max_frames``
+        frames later when fewer of the hand's due key-frames fall in its moving window so
+        (the held notes kept, the next notes' first frames lost instead), if the hand then
+        stays clear of ``other``'s forearm and of its own next shift. ``tx_held`` (T,) is the
+        plan as followed, with each shift's old position held until it leaves.
         """
         plan = self.tx_plan
         T = len(plan)
@@ -296,17 +323,23 @@ class ForearmPlan:
             need = move_frames(plan[shifts] - plan[shifts - 1], dt)
         else:
             need = np.full(len(shifts), n)
-        for k, steps in zip(shifts.tolist(), need.tolist(), strict=True):
-            window = slice(max(0, k - steps - lead + delay), max(0, k - lead + delay))
+        delays = np.full(len(shifts), delay)
+        # Only the whole-piece plan's shifts: each is one jump whose duration the plan knows
+        # (a frame plan moves in one-step pieces, whose frames in between play nothing).
+        if multi_step and played is not None and cfg.shift_delay_max_frames > 0:
+            delays += self._shift_delays(shifts, need, lead - delay, played, other, cfg)
+        for k, steps, d in zip(shifts.tolist(), need.tolist(), delays.tolist(), strict=True):
+            window = slice(max(0, k - steps - lead + d), max(0, k - lead + d))
             self.free[window] = True
             self.shift_to[window] = k
-        if delay:
+        if delays.any():
             # The path below ends every move ``lead`` frames early: hold the old position
-            # ``delay`` frames longer before each shift (later shifts first, so that a shift
+            # ``delays`` frames longer before each shift (later shifts first, so that a shift
             # that follows another keeps its own start).
             plan = plan.copy()
-            for k in shifts[::-1]:
-                plan[k : min(T, k + delay)] = self.tx_plan[k - 1]
+            for k, d in zip(shifts[::-1].tolist(), delays[::-1].tolist(), strict=True):
+                plan[k : min(T, k + d)] = self.tx_plan[k - 1]
+        self.tx_held = plan
         s = (np.arange(n) + 0.5) / n
         weights = s**2 * (1 - s) ** 2  # minimum-jerk velocity profile
         weights /= weights.sum()
@@ -318,8 +351,8 @@ class ForearmPlan:
             # when a one-step move would (not starting before the previous shift has ended):
             # its first step is small, so the fingers are off the keys before the hand flies.
             previous = 0
-            for k, steps in zip(shifts.tolist(), need.tolist(), strict=True):
-                arrive = k + delay - 1 - lead  # the first step whose end is at the new place
+            for k, steps, d in zip(shifts.tolist(), need.tolist(), delays.tolist(), strict=True):
+                arrive = k + d - 1 - lead  # the first step whose end is at the new place
                 begin = max(previous, arrive - steps + 1)
                 if arrive - begin >= 1:
                     u = (np.arange(begin, arrive + 1) - begin + 1) / (arrive - begin + 1)
@@ -331,6 +364,52 @@ class ForearmPlan:
         ext = np.concatenate([[y[0]], y, [y[-1]]])
         self.tx_path = np.stack([y, (ext[2:] - ext[:-2]) / (2 * dt)], axis=1)
         self.tx_servo = _Servo(m, self.tx_actuator, self.tx_dof, dt)
+
+    def _shift_delays(
+        self,
+        shifts: np.ndarray,
+        need: np.ndarray,
+        early: int,
+        played: np.ndarray,
+        other: ForearmPlan | None,
+        cfg: PlannerConfig,
+    ) -> np.ndarray:
+        """(S,) int: frames each shift leaves later than planned (0 to
+        ``shift_delay_max_frames``): the delay whose moving window holds the fewest of the
+        hand's due key-frames (``played`` (T,)), each frame of delay charged
+        ``shift_delay_cost``, the earliest of equals. ``early``: frames
+        before its note a shift ends when not delayed. A delay may not reach the next
+        shift's window nor bring the held forearm within ``forearm_separation_m`` of
+        ``other``'s (its plan as followed so far, ``tx_held``)."""
+        T = len(played)
+        plan = self.tx_plan
+        sign = 1.0 if self.side == "right" else -1.0
+        out = np.zeros(len(shifts), dtype=int)
+        for i, (k, steps) in enumerate(zip(shifts.tolist(), need.tolist(), strict=True)):
+            start, end = max(0, k - steps - early), max(0, k - early)
+            # The next shift's window (not delayed) bounds this one's.
+            limit = T
+            if i + 1 < len(shifts):
+                limit = max(0, int(shifts[i + 1] - need[i + 1] - early))
+            best, lost = 0, float(played[start:end].sum())
+            for d in range(1, cfg.shift_delay_max_frames + 1):
+                if end + d > limit:
+                    break
+                if other is not None:
+                    # Held at its old place through frame k + d at most (the path ends each
+                    # move up to a frame early and holds the old place that much longer).
+                    there = other.root_y + other.tx_held[k : min(T, k + d + 1)]
+                    gap = sign * (self.root_y + plan[k - 1] - there)
+                    if (gap < cfg.forearm_separation_m - 1e-9).any():
+                        break
+                # Lost: the delayed window, and any frames from the note on before it (the
+                # hand still at its old place, the keys there planned for the new one).
+                here = played[min(start + d, max(k, end)) : end + d].sum()
+                here += cfg.shift_delay_cost * d
+                if here < lost:
+                    best, lost = d, here
+            out[i] = best
+        return out
 
     def command_forearm(self, ctrl: np.ndarray, data, t: int, cfg: PlannerConfig) -> None:
         # The fingers are solved for where the forearm actually is (see ``forearm_lead_s``),
