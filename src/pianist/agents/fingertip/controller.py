@@ -263,12 +263,9 @@ class FingertipController(BaseController):
             targets, active, pressed = self._targets(hand, t, modes)
             hand.pressing = pressed >= 0
             hand.count_unsounded(pressed, key_down, cfg)
-            # As the planner: a finger pressing again the key it let up last step is pushed
-            # from its first step (``restrike_push_rad``), since it has one step to sound it.
+            # As the planner: a re-strike is pushed from its first step.
             let_up = self.last_modes[hand.finger_offset : hand.finger_offset + FINGERS]
-            hand.repress = (
-                hand.pressing & (let_up == Mode.RESTRIKE) & (np.asarray(cfg.restrike_push_rad) > 0)
-            )
+            hand.mark_represses(let_up == Mode.RESTRIKE, cfg)
             hand.last_key = pressed
             hand.solve(m, scratch, targets, active, cfg)
             ctrl[hand.finger_actuators] = hand.finger_controls(scratch)

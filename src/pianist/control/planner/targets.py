@@ -168,8 +168,7 @@ class FingerTargets:
                     hovering[finger] = True
                     self.state[finger] = FingerState.HOVERING
         pushed = self.count_unsounded(pressed_key, key_down, cfg)
-        # A re-strike has one step to bring its key down again: pushed from the first.
-        self.repress = self.pressing & let_up & (np.asarray(cfg.restrike_push_rad) > 0)
+        self.mark_represses(let_up, cfg)
         self.state[pushed | self.repress] = FingerState.PUSHING
         # A finger keeps its last key while it presses or hovers on its way to the next one.
         self.last_key = np.where(self.pressing, pressed_key, np.where(hovering, self.last_key, -1))
@@ -184,6 +183,12 @@ class FingerTargets:
         self.state[active & (self.state == FingerState.LIFTED)] = FingerState.HOVERING
         self.active = active.copy()
         return targets - origin, active
+
+    def mark_represses(self, let_up: np.ndarray, cfg) -> None:
+        """Set ``repress`` (5,) bool: the fingers pressing now (``pressing``) that let their
+        key up last step (``let_up`` (5,) bool). A re-strike has one step to bring its key
+        down again, so the IK pushes it from the first (``restrike_push_rad``)."""
+        self.repress = self.pressing & let_up & (np.asarray(cfg.restrike_push_rad) > 0)
 
     def count_unsounded(self, pressed_key: np.ndarray, key_down: np.ndarray, cfg) -> np.ndarray:
         """Count the steps each finger has pressed the same key without it sounding (a finger
