@@ -9,6 +9,9 @@ it (the benchmark's defaults plus the forearm height slide it declares, ``IKPlan
   made and rehearsed anew for every repeat, as for a first play), median over ``--repeats``;
 - plan: the planner's share of the wall-clock time (its ``act`` calls against the whole loop);
 - dF1: F1 on fast minus F1 on faithful, to check that the fast preset keeps results;
+- in the JSON, ``f1_lost_*``: the F1 each kind of error costs, were it alone put right
+  (:func:`pianist.eval.f1_lost_by_kind`: the plan's left-out keys and shifts, notes never
+  sounding, late notes, drop-outs, false keys), and their means per preset printed at the end;
 - with ``--noisy N``: the mean F1 over N more episodes with Gaussian noise (std 0.005) on the
   planner's actions. One episode's F1 is a chaotic function of the actions (contacts), so
   differences of ~0.01 between two planner versions are only real if the noisy means agree;
@@ -31,11 +34,15 @@ import numpy as np
 
 from pianist.control import NoisyController
 from pianist.control.planner import IKPlanner, forget_plans
-from pianist.eval import run_episode
+from pianist.eval import f1_lost_by_kind, run_episode
 from pianist.eval.session import make_env
 from pianist.music import list_songs
 
 PRESETS = ("faithful", "fast")
+#: The F1 each kind of error costs, in the JSON per song and preset (pianist.eval.f1_lost).
+F1_LOST = tuple(
+    f"f1_lost_{k}" for k in ("plan_left_out", "plan_in_shift", "never", "late", "dropout", "false")
+)
 NOISE_STD = 0.005
 
 
@@ -80,6 +87,9 @@ def bench_song(song: str, physics: str, repeats: int) -> dict[str, float]:
         episode = run_episode(env, planner, seed=0)
         wall = time.perf_counter() - start
         metrics = episode.metrics()
+        metrics.update(
+            f1_lost_by_kind(episode.active_keys, episode.goal_keys, planner.plan_arrays())
+        )
         rates.append(metrics["seconds"] / wall)
         shares.append(planner.act_seconds / wall)
     return {
@@ -90,6 +100,7 @@ def bench_song(song: str, physics: str, repeats: int) -> dict[str, float]:
         "seconds": metrics["seconds"],
         "realtime_factor": float(np.median(rates)),
         "planner_share": float(np.median(shares)),
+        **{k: v for k, v in metrics.items() if k.startswith("f1_lost_")},
     }
 
 
@@ -146,6 +157,11 @@ def main() -> None:
         if args.noisy:
             noisy = np.mean([r[p]["noisy_f1_mean"] for r in results.values()])
             print(f"mean noisy F1 {p}: {noisy:.3f}")
+        lost = {k: np.mean([r[p][k] for r in results.values()]) for k in F1_LOST}
+        print(
+            f"mean F1 lost {p} (each kind alone put right): "
+            + ", ".join(f"{k} {v:.3f}" for k, v in lost.items())
+        )
         if buffer:
             lead = np.mean([r[p]["lead_in_song_f1"] for r in results.values()])
             print(f"mean F1 {p} after a {buffer:g} s lead-in (song steps): {lead:.3f}")

@@ -175,12 +175,21 @@ def test_a_played_episode_reports_the_ceiling_and_stays_below_it():
         Note(84, 0.5, 1.5, finger=4),
     )
     song = Song(notes, name="three-hands")
-    metrics = play(song, IKPlanner(), physics="fast", seed=0).metrics
+    result = play(song, IKPlanner(), physics="fast", seed=0)
+    metrics = result.metrics
     assert 0.0 < metrics["reach_ceiling_f1"] < 1.0
     assert metrics["recall"] <= metrics["reach_ceiling_recall"] + 1e-9
     assert metrics["f1"] <= metrics["reach_ceiling_f1"] + 1e-9
     assert metrics["plan_left_out_share"] > 0.0
     assert 0.0 < metrics["plan_f1"] <= metrics["reach_ceiling_f1"] + 1e-9
+    # The F1 the left-out key costs, in the metric's unit: the episode's F1 were it sounding.
+    left_out = result.episode.extra["left_out_keys"]
+    pressed, goal = result.episode.active_keys, result.episode.goal_keys
+    fixed = precision_recall_f1(pressed | (left_out & goal), goal)["f1"]
+    assert left_out.any() and not (left_out & pressed).any()
+    assert metrics["f1_lost_plan_left_out"] == pytest.approx(fixed - metrics["f1"])
+    assert metrics["f1_lost_plan_left_out"] > 0.1
+    assert metrics["f1_lost_never"] >= metrics["f1_lost_plan_left_out"] - 1e-9
 
 
 def test_with_one_hand_the_other_reaches_nothing():

@@ -1,11 +1,12 @@
-"""Errors by kind (pianist.eval.errors): hand-made cases, and the classes adding up."""
+"""Errors by kind (pianist.eval.errors): hand-made cases, the classes adding up, and the F1
+each class costs."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from pianist.eval import note_errors, precision_recall_f1
+from pianist.eval import error_masks, f1_lost, note_errors, precision_recall_f1
 
 
 def _arrays(steps: int, due: dict[int, range], sounding: dict[int, list[int]]):
@@ -88,3 +89,50 @@ def test_bad_input_is_refused():
         note_errors(pressed[:, :10], goal)
     silent = note_errors(pressed, np.zeros_like(goal))
     assert silent["notes"] == 0.0 and silent["false_other_share"] == 0.0
+
+
+def test_the_masks_partition_the_wrong_key_frames():
+    rng = np.random.default_rng(1)
+    goal = rng.random((120, 88)) < 0.05
+    goal[1:] |= goal[:-1] & (rng.random((119, 88)) < 0.7)
+    pressed = (goal & (rng.random(goal.shape) < 0.8)) | (rng.random(goal.shape) < 0.01)
+    masks = error_masks(pressed, goal)
+    missed = masks["late"].astype(int) + masks["dropout"] + masks["never"]
+    false = masks["held"].astype(int) + masks["early"] + masks["other"]
+    assert np.array_equal(missed, (goal & ~pressed).astype(int))  # disjoint, and all of them
+    assert np.array_equal(false, (pressed & ~goal).astype(int))
+    errors = note_errors(pressed, goal)
+    assert errors["lost_late_share"] == pytest.approx(masks["late"].sum() / goal.sum())
+
+
+def test_f1_lost_counts_in_the_metrics_unit():
+    # Steps 0-3: one key due (40), steps 4-7: a chord of four (50-53). The single key is
+    # missed at step 0, one key of the chord at step 4, and a wrong key sounds at step 6.
+    pressed, goal = _arrays(
+        8,
+        {40: range(0, 4), 50: range(4, 8), 51: range(4, 8), 52: range(4, 8), 53: range(4, 8)},
+        {
+            40: [1, 2, 3],
+            50: [5, 6, 7],
+            51: [4, 5, 6, 7],
+            52: [4, 5, 6, 7],
+            53: [4, 5, 6, 7],
+            60: [6],
+        },
+    )
+    masks = error_masks(pressed, goal)
+    base = precision_recall_f1(pressed, goal)["f1"]
+    lost = f1_lost(pressed, goal, {"late": masks["late"], "other": masks["other"]})
+    # One missed key-frame each: the lone key costs its step's whole F1 (1 of 8 steps), the
+    # chord's key 1 - 2*3/7 of its step, the wrong key 1 - 8/9 of its step.
+    assert masks["late"].sum() == 2
+    assert lost["late"] == pytest.approx((1.0 + (1 - 6 / 7)) / 8)
+    assert lost["other"] == pytest.approx((1 - 8 / 9) / 8)
+    # Putting every wrong key-frame right gives F1 1.
+    everything = {"all": (goal & ~pressed) | (pressed & ~goal)}
+    assert base + f1_lost(pressed, goal, everything)["all"] == pytest.approx(1.0)
+    # A class wider than its wrong key-frames counts only those.
+    wide = f1_lost(pressed, goal, {"wide": goal})
+    assert wide["wide"] == pytest.approx(lost["late"])
+    with pytest.raises(ValueError, match="shape"):
+        f1_lost(pressed, goal, {"bad": goal[:, :10]})

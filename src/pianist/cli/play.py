@@ -167,6 +167,7 @@ class Play:
             f"({metrics['steps']} steps, {metrics['realtime_factor']:.1f}x real time) -> {self.out}"
         )
         _out(_errors_line(metrics))
+        _out(_f1_lost_line(metrics))
 
 
 def _errors_line(metrics: dict) -> str:
@@ -184,3 +185,25 @@ def _errors_line(metrics: dict) -> str:
         f"{pct('false_other_share')} other keys "
         f"({100 * metrics['notes_late_share']:.0f} % of the {metrics['notes']:.0f} notes late)"
     )
+
+
+def _f1_lost_line(metrics: dict) -> str:
+    """One line of the F1 each class of error costs, were it alone put right
+    (:func:`pianist.eval.f1_lost`); the plan's classes, where the controller has a plan,
+    overlap the others (a key left out is a note never sounding)."""
+    kinds = (
+        ("never", "notes never sounding"),
+        ("late", "late notes"),
+        ("dropout", "drop-outs"),
+        ("false", "false keys"),
+    )
+    plan = (("plan_left_out", "keys it left out"), ("plan_in_shift", "keys let go for shifts"))
+
+    def part(name: str, label: str) -> str:
+        return f"{label} {metrics[f'f1_lost_{name}']:.3f}"
+
+    line = "  F1 lost to " + ", ".join(
+        part(n, label) for n, label in kinds if f"f1_lost_{n}" in metrics
+    )
+    of_plan = [part(n, label) for n, label in plan if f"f1_lost_{n}" in metrics]
+    return line + (f"; of the plan's: {', '.join(of_plan)}" if of_plan else "")

@@ -217,6 +217,21 @@ def plan_f1(planner: IKPlanner) -> float:
     return float(step_f1(playable_mask(planner), planner.goal.keys).mean())
 
 
+def plan_key_classes(planner: IKPlanner) -> tuple[np.ndarray, np.ndarray]:
+    """The due key-frames ``planner``'s plan (after its reset) gives up, two (T, 88) bool
+    masks: those it sends no finger to (left out: a chord wider than the hand, a key out of
+    reach), and those of a hand whose fingers it lifts for a shift of the forearm."""
+    keys = planner.goal.keys
+    given = np.zeros_like(keys)
+    in_shift = np.zeros_like(keys)
+    for hand in planner.hands:
+        local = planner.fingers - hand.finger_offset
+        mine = keys & ~hand.skip & (local >= 0) & (local < 5)
+        given |= mine
+        in_shift |= mine & hand.free[:, None]
+    return keys & ~given, in_shift
+
+
 def plan_coverage(planner: IKPlanner) -> Coverage:
     """What ``planner``'s plan makes of its piece's due key-frames, beside the ceiling.
 
@@ -224,17 +239,12 @@ def plan_coverage(planner: IKPlanner) -> Coverage:
     made then).
     """
     keys = planner.goal.keys
-    given = np.zeros_like(keys)
-    in_shift = 0
-    for hand in planner.hands:
-        local = planner.fingers - hand.finger_offset
-        mine = keys & ~hand.skip & (local >= 0) & (local < 5)
-        given |= mine
-        in_shift += int((mine & hand.free[:, None]).sum())
+    left_out_keys, shift_keys = plan_key_classes(planner)
+    in_shift = int(shift_keys.sum())
     playable = int(playable_mask(planner).sum())
     lost = planner_ceiling(planner)
     due = int(keys.sum())
-    left_out = int((keys & ~given).sum())
+    left_out = int(left_out_keys.sum())
     recall, f1 = ceiling_scores(keys, lost)
     return Coverage(
         due=due,

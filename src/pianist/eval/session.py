@@ -20,7 +20,7 @@ import numpy as np
 from pianist.env import PianoEnv
 from pianist.env.handle import control_handle
 from pianist.eval.episode import Episode
-from pianist.eval.errors import note_errors
+from pianist.eval.errors import f1_lost_by_kind, note_errors
 from pianist.eval.rollout import run_episode
 from pianist.music import Song, load_song
 
@@ -163,6 +163,7 @@ def play(
         plan = getattr(controller, "plan_arrays", None)
         if plan is not None:
             episode.extra.update(plan())
+        metrics.update(f1_lost_by_kind(episode.active_keys, episode.goal_keys, episode.extra))
         if record_observations:
             recorder = _find_recorder(env)
             episode.extra["observations"] = recorder.stacked()

@@ -24,7 +24,7 @@ import mujoco
 import numpy as np
 
 from pianist.control.base import BaseController
-from pianist.control.coverage import Coverage, plan_coverage, playable_mask
+from pianist.control.coverage import Coverage, plan_coverage, plan_key_classes, playable_mask
 from pianist.control.hand_plan import Objective
 from pianist.control.hand_split import SplitCosts, split_hands
 from pianist.control.planner.config import (
@@ -254,6 +254,9 @@ class IKPlanner(BaseController):
           its planned forearm position;
         - ``hand_sides``: (H,) "right" / "left", the order of the hands above;
         - ``planned_fingers``: (T, 88) the finger (0-9) the plan gives each due key, -1 none;
+        - ``left_out_keys``, ``shift_keys``: (T, 88) bool, the due keys the plan sends no
+          finger to, and those it lets go for a shift
+          (:func:`pianist.control.coverage.plan_key_classes`);
         - ``finger_states``: (T, 10) int8, each finger's
           :class:`~pianist.control.planner.targets.FingerState` at each step played so far
           (0, lifted, for steps not played; a look-ahead's steps are overwritten by the real
@@ -269,7 +272,10 @@ class IKPlanner(BaseController):
             span = [np.interp(y, key_y[order], order.astype(float)) for y in (low, high)]
             spans.append(np.stack(span, axis=1))
         planned = np.where(self.goal.keys, self.fingers, -1)
+        left_out, in_shift = plan_key_classes(self)
         return {
+            "left_out_keys": left_out,
+            "shift_keys": in_shift,
             "hand_key_span": np.stack(spans, axis=1),
             "hand_sides": np.array([hand.side for hand in hands]),
             "planned_fingers": planned,
