@@ -161,17 +161,20 @@ def hand_features(
     out[1] = s * (view.tx - view.tx_mid) / view.tx_half
     out[2] = s * view.tx_vel
     out[3] = 1.0 if view.other_y is None else s * view.other_y
-    # The hand's notes ahead: count and the slide's moves to the lowest and highest.
+    # The hand's notes ahead: count and the slide's moves to the lowest and highest (all the
+    # window's frames at once: (W, 88) masks over every key's move).
     lo, hi = view.finger_offset, view.finger_offset + FINGERS
-    for k in range(WINDOW):
-        frame = t + k
-        if frame >= T:
-            break
-        mine = goal_keys[frame] & (goal_fingers[frame] >= lo) & (goal_fingers[frame] < hi)
-        if not mine.any():
-            continue
-        moves = s * (key_point[mine, 1] - view.tip_offset_y[2] - view.tx)
-        out[4 + 3 * k : 7 + 3 * k] = (mine.sum() / FINGERS, moves.min(), moves.max())
+    window = slice(t, min(t + WINDOW, T))
+    fingers = goal_fingers[window]
+    mine = goal_keys[window] & (fingers >= lo) & (fingers < hi)
+    busy = np.flatnonzero(mine.any(axis=1))
+    if busy.size:
+        mine = mine[busy]
+        moves = s * (key_point[:, 1] - view.tip_offset_y[2] - view.tx)  # (88,)
+        ahead = out[4:HAND_DIM].reshape(WINDOW, 3)
+        ahead[busy, 0] = mine.sum(axis=1) / FINGERS
+        ahead[busy, 1] = np.where(mine, moves, np.inf).min(axis=1)
+        ahead[busy, 2] = np.where(mine, moves, -np.inf).max(axis=1)
     radius = C.FINGERTIP_CAPSULE_RADIUS_M
     for f in range(FINGERS):
         base = HAND_DIM + f * FINGER_DIM
