@@ -4,7 +4,9 @@ For every song asked for and every physics preset, one episode of the IK planner
 of :class:`pianist.control.refine.Refiner` around it (same seed), both in the environment the
 CLI uses for them. Per song: the two F1s (and precision, recall), the gain, each one's real-time
 factor (simulated seconds per wall-clock second) and the share of steps where the refiner
-played a perturbed action. Both controllers are deterministic given the seed.
+played a perturbed action; in the JSON also the F1 each kind of error costs
+(``f1_lost_*``, :func:`pianist.eval.f1_lost_by_kind`), and its means, printed at the end.
+Both controllers are deterministic given the seed.
 
 Run: ``python benchmarks/bench_refine.py [--songs a,b | --suite open-etude-12]
 [--presets fast,faithful] [--refine candidates=8,horizon_steps=4] [--json out.json]``.
@@ -31,6 +33,7 @@ def _episode(song: str, controller, physics: str) -> dict:
     wall = time.perf_counter() - start
     m = result.metrics
     out = {k: m[k] for k in ("precision", "recall", "f1")}
+    out.update({k: v for k, v in m.items() if k.startswith("f1_lost_")})  # pianist.eval.f1_lost
     out["rtf"] = m["realtime_factor"]
     out["wall_s"] = wall
     return out
@@ -69,8 +72,16 @@ def main() -> None:
             )
         f1 = np.array(gains)
         summary = {"planner_f1": float(f1[:, 0].mean()), "refine_f1": float(f1[:, 1].mean())}
+        for who in ("planner", "refine"):
+            runs = [results["songs"][song][preset][who] for song in songs]
+            summary[f"{who}_f1_lost"] = {
+                k: float(np.mean([r[k] for r in runs])) for k in runs[0] if k.startswith("f1_lost_")
+            }
         results.setdefault("mean", {})[preset] = summary
         print(f"{'mean':36s} {preset:8s} {summary['planner_f1']:6.3f} {summary['refine_f1']:6.3f}")
+        for who in ("planner", "refine"):
+            lost = ", ".join(f"{k[8:]} {v:.3f}" for k, v in summary[f"{who}_f1_lost"].items())
+            print(f"  F1 lost by the {who} (each kind alone put right): {lost}")
     if args.json:
         with open(args.json, "w") as f:
             json.dump(results, f, indent=1)
