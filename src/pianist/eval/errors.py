@@ -21,11 +21,20 @@ class in the metric's own unit instead: the episode F1 it costs.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 
 import numpy as np
 
 from pianist.eval.metrics import _as_bool_pair, per_step_precision_recall_f1
+
+
+def _notes(goal: np.ndarray) -> Iterator[tuple[int, int, int]]:
+    """Every note of ``goal`` (T, K) bool: (key, first frame, frame after its last)."""
+    for key in np.flatnonzero(goal.any(axis=0)).tolist():
+        edges = np.diff(goal[:, key].astype(np.int8), prepend=0, append=0)
+        starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+        for start, end in zip(starts.tolist(), ends.tolist(), strict=True):
+            yield key, start, end
 
 
 def error_masks(pressed: np.ndarray, goal: np.ndarray, window: int = 2) -> dict[str, np.ndarray]:
@@ -48,17 +57,14 @@ def error_masks(pressed: np.ndarray, goal: np.ndarray, window: int = 2) -> dict[
     if window < 1:
         raise ValueError(f"window must be >= 1 frame, not {window}")
     late, dropout, never = (np.zeros_like(goal) for _ in range(3))
-    for key in np.flatnonzero(goal.any(axis=0)).tolist():
-        edges = np.diff(goal[:, key].astype(np.int8), prepend=0, append=0)
-        starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)  # ends: exclusive
-        for start, end in zip(starts.tolist(), ends.tolist(), strict=True):
-            sounding = pressed[start:end, key]
-            if not sounding.any():
-                never[start:end, key] = True
-                continue
-            first = start + int(np.argmax(sounding))
-            late[start:first, key] = True
-            dropout[first:end, key] = ~pressed[first:end, key]
+    for key, start, end in _notes(goal):
+        sounding = pressed[start:end, key]
+        if not sounding.any():
+            never[start:end, key] = True
+            continue
+        first = start + int(np.argmax(sounding))
+        late[start:first, key] = True
+        dropout[first:end, key] = ~sounding[first - start :]
     # False key-frames by the nearest due frames of the same key, before and after.
     false = pressed & ~goal
     due_before = np.zeros_like(goal)
@@ -153,18 +159,15 @@ def note_errors(pressed: np.ndarray, goal: np.ndarray, window: int = 2) -> dict[
     pressed = np.asarray(pressed, dtype=bool)
     notes = late_notes = never_notes = 0
     delays: list[int] = []  # frames from each sounding note's start to its first sound
-    for key in np.flatnonzero(goal.any(axis=0)).tolist():
-        edges = np.diff(goal[:, key].astype(np.int8), prepend=0, append=0)
-        starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)  # ends: exclusive
-        notes += len(starts)
-        for start, end in zip(starts.tolist(), ends.tolist(), strict=True):
-            sounding = pressed[start:end, key]
-            if not sounding.any():
-                never_notes += 1
-                continue
-            first = int(np.argmax(sounding))
-            delays.append(first)
-            late_notes += first > 0
+    for key, start, end in _notes(goal):
+        notes += 1
+        sounding = pressed[start:end, key]
+        if not sounding.any():
+            never_notes += 1
+            continue
+        first = int(np.argmax(sounding))
+        delays.append(first)
+        late_notes += first > 0
     due = int(np.count_nonzero(goal))
 
     def share(name: str) -> float:
