@@ -136,13 +136,8 @@ def f1_lost_by_kind(
 
 
 def note_errors(pressed: np.ndarray, goal: np.ndarray, window: int = 2) -> dict[str, float]:
-    """Count an episode's errors by kind (module docstring).
-
-    Args:
-        pressed: (T, K) bool, key k sounding at the end of step t.
-        goal: (T, K) bool, key k due at step t.
-        window: frames (>= 1) within which a false key-frame counts as held from the note
-            before it or early for the note after it.
+    """Count an episode's errors by kind (module docstring); the arguments and errors
+    raised are :func:`error_masks`'s.
 
     Returns:
         ``notes``: how many notes the goal has; ``notes_late_share`` and
@@ -151,8 +146,6 @@ def note_errors(pressed: np.ndarray, goal: np.ndarray, window: int = 2) -> dict[
         start to its first sounding frame, over the notes that sound; ``lost_*_share``: missed
         key-frames by class, and ``false_*_share``: false key-frames by class, each as a share
         of the due key-frames (0 when nothing is due).
-    Raises:
-        ValueError: mismatched or non-boolean arrays, an empty episode, ``window`` < 1.
     """
     masks = error_masks(pressed, goal, window)
     goal = np.asarray(goal, dtype=bool)
