@@ -8,6 +8,9 @@ it (the benchmark's defaults plus the forearm height slide it declares, ``IKPlan
 - rtf: simulated seconds per wall-clock second, planner included (its reset too: the plans
   made and rehearsed anew for every repeat, as for a first play), median over ``--repeats``;
 - plan: the planner's share of the wall-clock time (its ``act`` calls against the whole loop);
+- with ``--compare-tape``: the same cold start with the rehearsal's steps simulated again in
+  the performance (``replay_tape=False``), timed in turns with the default, its median
+  real-time factor and the speed-up the tape gives (the F1 must be the same: checked);
 - dF1: F1 on fast minus F1 on faithful, to check that the fast preset keeps results;
 - in the JSON, ``f1_lost_*``: the F1 each kind of error costs, were it alone put right
   (:func:`pianist.eval.f1_lost_by_kind`: the plan's left-out keys and shifts, notes never
@@ -21,7 +24,8 @@ it (the benchmark's defaults plus the forearm height slide it declares, ``IKPlan
   still at home. The benchmark's own numbers are the ones without it.
 
 Run: ``python benchmarks/bench_planner.py [--songs a,b | --suite open-etude-12]
-[--presets faithful,fast] [--repeats 3] [--noisy 5] [--initial-buffer 0.5] [--json out.json]``.
+[--presets faithful,fast] [--repeats 3] [--noisy 5] [--initial-buffer 0.5] [--compare-tape]
+[--json out.json]``.
 """
 
 from __future__ import annotations
@@ -33,7 +37,7 @@ import time
 import numpy as np
 
 from pianist.control import NoisyController
-from pianist.control.planner import IKPlanner, forget_plans
+from pianist.control.planner import IKPlanner, PlannerConfig, forget_plans
 from pianist.eval import f1_lost_by_kind, run_episode
 from pianist.eval.session import make_env
 from pianist.music import list_songs
@@ -77,22 +81,34 @@ def lead_in_f1(song: str, physics: str, buffer_s: float) -> float:
     return run_episode(env, planner, seed=0).metrics()["song_f1"]
 
 
-def bench_song(song: str, physics: str, repeats: int) -> dict[str, float]:
-    planner = _TimedPlanner()
+def _timed_episode(song: str, physics: str, config: PlannerConfig) -> tuple[dict, float, float]:
+    """One cold-start episode (plans made and rehearsed anew): its metrics with the F1 lost
+    by kind, its real-time factor and the planner's share of the wall time."""
+    planner = _TimedPlanner(config)
     env = make_env(song, planner, physics=physics)
-    rates, shares, metrics = [], [], None
+    forget_plans()
+    start = time.perf_counter()
+    episode = run_episode(env, planner, seed=0)
+    wall = time.perf_counter() - start
+    metrics = episode.metrics()
+    metrics.update(f1_lost_by_kind(episode.active_keys, episode.goal_keys, planner.plan_arrays()))
+    return metrics, metrics["seconds"] / wall, planner.act_seconds / wall
+
+
+def bench_song(song: str, physics: str, repeats: int, compare_tape: bool = False) -> dict:
+    rates, shares, untaped, metrics = [], [], [], {}
     for _ in range(repeats):
-        forget_plans()
-        start = time.perf_counter()
-        episode = run_episode(env, planner, seed=0)
-        wall = time.perf_counter() - start
-        metrics = episode.metrics()
-        metrics.update(
-            f1_lost_by_kind(episode.active_keys, episode.goal_keys, planner.plan_arrays())
-        )
-        rates.append(metrics["seconds"] / wall)
-        shares.append(planner.act_seconds / wall)
-    return {
+        metrics, rate, share = _timed_episode(song, physics, PlannerConfig())
+        rates.append(rate)
+        shares.append(share)
+        if compare_tape:  # in turns, so that the machine's load weighs on both alike
+            other, rate, _ = _timed_episode(song, physics, PlannerConfig(replay_tape=False))
+            if other["f1"] != metrics["f1"]:
+                raise AssertionError(
+                    f"{song} {physics}: F1 {metrics['f1']} with the tape, {other['f1']} without"
+                )
+            untaped.append(rate)
+    result = {
         "precision": metrics["precision"],
         "recall": metrics["recall"],
         "f1": metrics["f1"],
@@ -102,6 +118,10 @@ def bench_song(song: str, physics: str, repeats: int) -> dict[str, float]:
         "planner_share": float(np.median(shares)),
         **{k: v for k, v in metrics.items() if k.startswith("f1_lost_")},
     }
+    if compare_tape:
+        result["realtime_factor_no_tape"] = float(np.median(untaped))
+        result["tape_speedup"] = result["realtime_factor"] / result["realtime_factor_no_tape"]
+    return result
 
 
 def main() -> None:
@@ -114,6 +134,11 @@ def main() -> None:
     parser.add_argument(
         "--initial-buffer", type=float, default=0.0, help="also score after S s of silence"
     )
+    parser.add_argument(
+        "--compare-tape",
+        action="store_true",
+        help="also time the performance simulated again (replay_tape=False)",
+    )
     parser.add_argument("--json", default=None, help="also write the results to this file")
     args = parser.parse_args()
     songs = list_songs(args.suite) if args.suite else args.songs.split(",")
@@ -121,6 +146,8 @@ def main() -> None:
 
     results: dict[str, dict[str, dict[str, float]]] = {}
     header = f"{'song':34s} {'preset':9s} {'P':>6s} {'R':>6s} {'F1':>6s} {'rtf':>6s} {'plan':>5s}"
+    if args.compare_tape:
+        header += f" {'rtf untaped':>11s} {'speed-up':>8s}"
     if args.noisy:
         header += f" {'noisy F1':>14s}"
     buffer = args.initial_buffer
@@ -130,11 +157,13 @@ def main() -> None:
     for song in songs:
         results[song] = {}
         for physics in presets:
-            r = bench_song(song, physics, args.repeats)
+            r = bench_song(song, physics, args.repeats, args.compare_tape)
             line = (
                 f"{song:34s} {physics:9s} {r['precision']:6.3f} {r['recall']:6.3f} "
                 f"{r['f1']:6.3f} {r['realtime_factor']:6.1f} {r['planner_share']:5.2f}"
             )
+            if args.compare_tape:
+                line += f" {r['realtime_factor_no_tape']:11.1f} {r['tape_speedup']:8.2f}"
             if args.noisy:
                 r["noisy_f1_mean"], r["noisy_f1_std"] = noisy_f1(song, physics, args.noisy)
                 line += f" {r['noisy_f1_mean']:7.3f}+-{r['noisy_f1_std']:.3f}"
@@ -154,6 +183,12 @@ def main() -> None:
             print(f"{song:34s} {by_preset['fast']['f1'] - by_preset['faithful']['f1']:+22.3f}")
     for p in presets:
         print(f"mean F1 {p}: {np.mean([r[p]['f1'] for r in results.values()]):.3f}")
+        rtf = [r[p]["realtime_factor"] for r in results.values()]
+        print(f"median real-time factor {p}: {np.median(rtf):.1f} (slowest {min(rtf):.1f})")
+        if args.compare_tape:
+            untaped = np.median([r[p]["realtime_factor_no_tape"] for r in results.values()])
+            speedup = np.median([r[p]["tape_speedup"] for r in results.values()])
+            print(f"  without the tape: {untaped:.1f}; median speed-up {speedup:.2f}x")
         if args.noisy:
             noisy = np.mean([r[p]["noisy_f1_mean"] for r in results.values()])
             print(f"mean noisy F1 {p}: {noisy:.3f}")

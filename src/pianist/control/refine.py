@@ -42,8 +42,8 @@ import gymnasium as gym
 import numpy as np
 
 from pianist.control.base import BaseController
-from pianist.control.planner.rehearsal import physics_state, same_state
 from pianist.env.handle import ControlHandle, control_handle
+from pianist.env.tape import physics_state, same_state
 
 if TYPE_CHECKING:
     from pianist.control.planner import IKPlanner

@@ -24,6 +24,7 @@ if TYPE_CHECKING:
     import mujoco
 
     from pianist.env.config import EnvConfig
+    from pianist.env.tape import StepTape
     from pianist.music import GoalFrames, Song
     from pianist.sim.scene import Scene
 
@@ -32,7 +33,8 @@ class ControlHandle:
     """A live, read-only view of one :class:`PianoEnv` for a controller.
 
     Attributes are the environment's own objects, not copies: ``data`` changes as the episode
-    runs. Controllers read them and act only through the actions they return.
+    runs. Controllers read them and act only through the actions they return
+    (:meth:`play_tape` changes how fast the environment takes its steps, not what they are).
     """
 
     def __init__(self, env: PianoEnv) -> None:
@@ -45,7 +47,10 @@ class ControlHandle:
 
     @property
     def data(self) -> mujoco.MjData:
-        """The simulator state; consistent with ``qpos`` after every reset and step."""
+        """The simulator state; consistent with ``qpos`` after every reset and step (while
+        the environment plays a tape back, :mod:`pianist.env.tape`, its positions and
+        velocities are; contacts, forces and sensors are brought up to date when the tape is
+        left)."""
         return self._env.data
 
     @property
@@ -101,6 +106,12 @@ class ControlHandle:
     def snapshot(self) -> EnvState:
         """The environment's episode state now (a copy; see :meth:`PianoEnv.snapshot`)."""
         return self._env.snapshot()
+
+    def play_tape(self, tape: StepTape) -> bool:
+        """Let the environment play back steps recorded on a fork of it while the actions
+        are the recorded ones, instead of simulating them (:meth:`PianoEnv.play_tape`: the
+        episode is the same, only faster). Returns whether it took the tape."""
+        return self._env.play_tape(tape)
 
     def fork(self, seed: int | None = None) -> PianoEnv:
         """A private copy of the environment in its current state, to look ahead in: step it

@@ -46,6 +46,7 @@ import numpy as np
 from pianist.env import rewards as R
 from pianist.env.config import REWARD_TERMS, EnvConfig, make_config
 from pianist.env.events import EMPTY_EVENTS, key_events, sustain_event
+from pianist.env.tape import StepTape, same_state
 from pianist.music import GoalFrames, Song, goal_frames, load_song
 from pianist.sim import constants as C
 from pianist.sim.scene import Scene, build_scene
@@ -157,6 +158,7 @@ class PianoEnv(gym.Env):
         self._setup_spaces()
         self._t = 0
         self._started = False  # an episode has been started (reset)
+        self._tape: StepTape | None = None  # steps to play back (play_tape)
 
     # ----------------------------------------------------------------------------- set-up
 
@@ -276,6 +278,7 @@ class PianoEnv(gym.Env):
         """Start an episode at step 0, or with ``options={"start": state}`` go on from an
         :class:`EnvState` (:meth:`snapshot`) as :meth:`restore` does."""
         super().reset(seed=seed)
+        self._tape = None
         start = (options or {}).get("start")
         if start is not None:  # continue an episode from a snapshot of it (see restore)
             self.restore(start)
@@ -308,9 +311,72 @@ class PianoEnv(gym.Env):
     def step(
         self, action: np.ndarray
     ) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
+        if self._tape is not None:
+            outputs = self._step_from_tape(action)
+            if outputs is not None:
+                return outputs
         self.apply_action(action)
         self.advance_physics()
         return self.finish_step()
+
+    def play_tape(self, tape: StepTape) -> bool:
+        """Play ``tape``'s steps back from the next step on (:mod:`pianist.env.tape`): as
+        long as each step's action is the tape's, the step returns the recorded outputs and
+        sets the recorded state instead of simulating it. The episode is the same, bit for
+        bit, as simulating every step.
+
+        Args:
+            tape: steps recorded on a :meth:`fork` of this environment from its current
+                state, closed (:meth:`StepTape.finish`).
+        Returns:
+            Whether the tape was taken: not (and nothing changes) unless it is closed, has
+            steps, and starts at this environment's current step and state.
+        """
+        if (
+            not self._started
+            or tape.end is None
+            or len(tape) == 0
+            or tape.start_step != self._t
+            or not same_state(tape.state_before(0), self.data)
+        ):
+            return False
+        self._leave_tape()
+        self._tape = tape
+        return True
+
+    def _step_from_tape(
+        self, action: np.ndarray
+    ) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]] | None:
+        """The tape's next step if ``action`` is its action (else the tape is left: None)."""
+        tape = self._tape
+        assert tape is not None
+        index = self._t - tape.start_step
+        if not tape.matches(index, action):
+            self._leave_tape()
+            return None
+        tape.set_state(index, self.model, self.data)
+        outputs = tape.output(index)
+        self._t += 1
+        self._active = outputs[4]["active_keys"].copy()
+        self._sustain = outputs[4]["sustain"]
+        self._key_state = self.key_state()
+        if index + 1 == len(tape):  # its last step: the full recorded state, and no tape
+            assert tape.end is not None
+            self.restore(tape.end)
+        return outputs
+
+    def _leave_tape(self) -> None:
+        """Stop playing the tape, the environment brought to exactly where simulating the
+        steps played from it would have: its start restored, those steps simulated."""
+        tape, self._tape = self._tape, None
+        if tape is None or self._t == tape.start_step:
+            return
+        played = self._t - tape.start_step
+        self.restore(tape.start)
+        for action in tape.actions[:played]:
+            self.apply_action(action)
+            self.advance_physics()
+            self.finish_step()
 
     def advance_physics(self) -> None:
         """Run the substeps of one control step in a single ``mj_step`` call.
@@ -344,6 +410,7 @@ class PianoEnv(gym.Env):
 
     def apply_action(self, action: np.ndarray) -> None:
         """Validate ``action`` and write it to ``data.ctrl`` and the pedal (first half of step)."""
+        self._leave_tape()
         if self._t >= self.goal.num_frames:
             raise RuntimeError("the episode is over: call reset()")
         action = np.asarray(action, dtype=np.float64)
@@ -426,6 +493,7 @@ class PianoEnv(gym.Env):
 
     def snapshot(self) -> EnvState:
         """The episode's state now (a copy: later steps do not change it)."""
+        self._leave_tape()
         data = mujoco.MjData(self.model)
         mujoco.mj_copyData(data, self.model, self.data)
         return EnvState(
@@ -444,6 +512,7 @@ class PianoEnv(gym.Env):
         it (the same model): the next step is the one that followed the snapshot."""
         if state.data.qpos.shape != self.data.qpos.shape or state.step > self.goal.num_frames:
             raise ValueError("the snapshot is of another environment")
+        self._tape = None
         mujoco.mj_copyData(self.data, self.model, state.data)
         self._started = True
         self._t = state.step
@@ -460,7 +529,9 @@ class PianoEnv(gym.Env):
         goal (read only) and has its own simulator state; it does not render. Of an
         environment with no episode started yet, the fork is reset with ``seed`` (the state
         this one's ``reset(seed=seed)`` would start from)."""
+        self._leave_tape()
         other = copy.copy(self)
+        other._tape = None
         other.data = mujoco.MjData(self.model)
         other._substep_active = np.zeros_like(self._substep_active)
         other._renderer = None

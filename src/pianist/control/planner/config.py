@@ -209,6 +209,11 @@ class PlannerConfig:
     or by the key-frames each leaves playable (``playable``: a later plan is chosen only if
     it adds ``piece_plan_margin`` of the song's key-frames; no simulation, but blind to how a
     plan is executed: open-etude-12 0.777 against 0.788, fast)."""
+    replay_tape: bool = True
+    """With ``choose_plan="rehearsal"``, hand the winning rehearsal's recorded steps to the
+    environment to play back (:meth:`pianist.env.PianoEnv.play_tape`) while the performance
+    follows them, instead of simulating them again: the same episode, bit for bit, without
+    the performance's physics (about a third of a cold start's time on real pieces)."""
     piece_plan_margin: float = 0.02
     """With ``choose_plan="playable"``, the share of the song's key-frames a later plan must
     add to be chosen (wide chords, jumps, a fingering the Shadow hand cannot span)."""

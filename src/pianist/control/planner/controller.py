@@ -98,6 +98,7 @@ class IKPlanner(BaseController):
             _, chosen, self._replay, rehearsed = cached
             self.rehearsed = dict(rehearsed)
             self._restore(chosen)
+            self._play_tape()
             return
         if cfg.hand_planning == "best":
             chosen = self._choose_plan(goal, seed)
@@ -111,6 +112,13 @@ class IKPlanner(BaseController):
         if len(_PLANS) >= _PLANS_KEPT:
             del _PLANS[next(iter(_PLANS))]
         _PLANS[key] = (weakref.ref(goal), chosen, self._replay, dict(self.rehearsed))
+        self._play_tape()
+
+    def _play_tape(self) -> None:
+        """Give the environment the chosen rehearsal's steps to play back (``replay_tape``;
+        taken only if the episode is where the rehearsal started)."""
+        if self._replay is not None and self.config.replay_tape:
+            self.handle.play_tape(self._replay.tape)
 
     def setup(self, env: gym.Env) -> None:
         """The per-episode set-up without the plan: the keys' press points and heights, the

@@ -8,7 +8,8 @@ thumb's crossing and play 0.91-0.93, its step-F1 plan 0.77, where the frame-by-f
 as playable, plays 0.96). The physics
 is deterministic, so a rehearsal's score is the score of the performance that follows it
 from the same state, and the performance can replay the winner's actions instead of
-computing them again (:class:`Replay`).
+computing them again (:class:`Replay`), and the environment its steps instead of simulating
+them again (the rehearsal's :class:`~pianist.env.tape.StepTape`).
 
 Inputs: an :class:`~pianist.control.planner.IKPlanner` just reset (its plan made), and a
 fork of its environment in the reset state (:meth:`pianist.env.handle.ControlHandle.fork`).
@@ -25,6 +26,7 @@ import numpy as np
 
 from pianist.control.scoring import step_f1
 from pianist.env.handle import ControlHandle, control_handle
+from pianist.env.tape import StepTape, same_state
 
 
 class Rehearsable(Protocol):
@@ -38,25 +40,14 @@ class Rehearsable(Protocol):
     def act(self, observation: object = None) -> np.ndarray: ...
 
 
-def physics_state(data: Any) -> tuple[np.ndarray, ...]:
-    """What the planner's next action depends on in the simulator (``mujoco.MjData``):
-    copies of qpos, qvel, act and ctrl."""
-    return (data.qpos.copy(), data.qvel.copy(), data.act.copy(), data.ctrl.copy())
-
-
-def same_state(state: tuple[np.ndarray, ...], data: Any) -> bool:
-    """Whether the simulator ``data`` is bit for bit at a :func:`physics_state` ``state``."""
-    now = (data.qpos, data.qvel, data.act, data.ctrl)
-    return all(np.array_equal(x, y) for x, y in zip(state, now, strict=True))
-
-
 @dataclass
 class Replay:
     """A rehearsal's steps, to be played again from the same state.
 
     Attributes:
         actions: (T, A) the action played at each step.
-        states: per step, the :func:`physics_state` before its action.
+        tape: the rehearsal's steps as the environment took them (their states, and what
+            they returned), for the environment to play back.
         memories: per step, the planner's memory after its action (what acting would have
             left it, so the planner acts on live from any step where the performance leaves
             the rehearsal's path).
@@ -64,13 +55,13 @@ class Replay:
     """
 
     actions: np.ndarray
-    states: list[tuple[np.ndarray, ...]]
+    tape: StepTape
     memories: list[list[dict[str, np.ndarray]]]
     finger_states: np.ndarray
 
     def on_path(self, step: int, handle: ControlHandle) -> bool:
         """Whether the environment is where the rehearsal was before ``step``."""
-        return step < len(self.actions) and same_state(self.states[step], handle.data)
+        return step < len(self.actions) and same_state(self.tape.state_before(step), handle.data)
 
 
 def rehearse(
@@ -109,12 +100,12 @@ def rehearse(
     # least_lost[t]: the least F1 the steps after step t lose.
     best_case = np.ones(steps) if plan_f1 is None else np.minimum(plan_f1[:steps], 1.0)
     least_lost = np.r_[np.cumsum((1.0 - best_case)[::-1])[::-1][1:], 0.0]
-    actions, states, memories, f1s = [], [], [], []
+    tape = StepTape.begin(fork)
+    actions, memories, f1s = [], [], []
     lost, done = 0.0, False
     while not done:
-        states.append(physics_state(handle.data))
         action = act() if act is not None else planner.act(None)
-        _, _, terminated, truncated, info = fork.step(action)
+        _, _, terminated, truncated, info = tape.record(fork, action)
         done = terminated or truncated
         actions.append(action)
         memories.append(planner.memory())
@@ -123,7 +114,8 @@ def rehearse(
         bound = lost + least_lost[min(len(f1s) - 1, steps - 1)]
         if bound >= give_up_at and not done:
             return float(1.0 - bound / steps), None
-    replay = Replay(np.array(actions), states, memories, planner.finger_states.copy())
+    tape.finish(fork)
+    replay = Replay(np.array(actions), tape, memories, planner.finger_states.copy())
     return float(np.mean(f1s)), replay
 
 

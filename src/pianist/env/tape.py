@@ -1,0 +1,150 @@
+"""A tape of steps: steps recorded on a fork of an environment, played back on the environment
+itself without simulating them again.
+
+The physics is deterministic, so steps taken on a :meth:`PianoEnv.fork` from some state are
+exactly the steps the environment would take from that state with the same actions. A
+controller that has already played a stretch on a fork (the planner's rehearsal) can hand
+the recording to the environment (:meth:`PianoEnv.play_tape`): from then on each step whose
+action is the tape's next returns the recorded outputs and sets the recorded state, at the
+cost of a copy instead of a control step of physics.
+
+While a tape plays, ``data`` holds each step's ``qpos``, ``qvel``, ``act``, ``ctrl``,
+``userdata`` and ``time`` and the positions derived from them (``mj_kinematics``); its other
+fields (contacts, forces, sensors) are brought up to date when the tape is left. The tape is
+left at the first action that is not the tape's, at a snapshot or fork, at its last step (the
+recorded final state is restored whole), and dropped at a reset or restore. Leaving it
+before its end restores its start and simulates the steps played from it, so the
+environment is then exactly where simulating every step would have put it: at worst a tape
+costs what playing without it does.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+import mujoco
+import numpy as np
+
+StepOutputs = tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]
+"""What ``PianoEnv.step`` returns: observation, reward, terminated, truncated, info."""
+
+
+class Recordable(Protocol):
+    """What a tape records from (a :class:`~pianist.env.PianoEnv`; this module does not
+    import it, which imports this one)."""
+
+    data: mujoco.MjData
+
+    def step(self, action: np.ndarray) -> StepOutputs: ...
+    def snapshot(self) -> Any: ...
+
+
+_STATE_FIELDS = ("qpos", "qvel", "act", "ctrl", "userdata")
+
+
+def physics_state(data: mujoco.MjData) -> tuple[np.ndarray, ...]:
+    """Copies of ``data``'s qpos, qvel, act, ctrl, userdata and time (as a (1,) array): the
+    state a step starts from, as far as a controller's action depends on it."""
+    return (*(getattr(data, name).copy() for name in _STATE_FIELDS), np.array([data.time]))
+
+
+def same_state(state: tuple[np.ndarray, ...], data: mujoco.MjData) -> bool:
+    """Whether ``data`` is bit for bit at the :func:`physics_state` ``state``."""
+    now = (*(getattr(data, name) for name in _STATE_FIELDS), np.array([data.time]))
+    return all(np.array_equal(x, y) for x, y in zip(state, now, strict=True))
+
+
+def clean_action(action: Any) -> np.ndarray | None:
+    """The action as ``PianoEnv.step`` applies it ((A,) float64, clipped to [-1, 1]), or
+    None if it is not finite."""
+    action = np.asarray(action, dtype=np.float64)
+    if not np.all(np.isfinite(action)):
+        return None
+    return np.clip(action, -1.0, 1.0)
+
+
+@dataclass
+class StepTape:
+    """Steps recorded on an environment from a snapshot of it (:meth:`record`).
+
+    Attributes:
+        start: the environment's full state before the first step (an ``EnvState``).
+        actions: per step, the action as applied ((A,) float64, clipped).
+        outputs: per step, what ``step`` returned.
+        states: per step, the :func:`physics_state` after it.
+        end: the full state after the last step (None while recording; an ``EnvState``).
+    """
+
+    start: Any
+    actions: list[np.ndarray] = field(default_factory=list)
+    outputs: list[StepOutputs] = field(default_factory=list)
+    states: list[tuple[np.ndarray, ...]] = field(default_factory=list)
+    end: Any = None
+
+    @classmethod
+    def begin(cls, env: Recordable) -> StepTape:
+        """A tape starting at ``env``'s current state; step it with :meth:`record`."""
+        return cls(start=env.snapshot())
+
+    def __len__(self) -> int:
+        return len(self.actions)
+
+    @property
+    def start_step(self) -> int:
+        """The index of the goal frame the tape's first step plays."""
+        return self.start.step
+
+    def record(self, env: Recordable, action: np.ndarray) -> StepOutputs:
+        """Step ``env`` (the environment the tape began on) with ``action`` and record it."""
+        outputs = env.step(action)
+        applied = clean_action(action)
+        assert applied is not None  # step refuses a non-finite action
+        self.actions.append(applied)
+        self.outputs.append(outputs)
+        self.states.append(physics_state(env.data))
+        self.end = None
+        return outputs
+
+    def finish(self, env: Recordable) -> StepTape:
+        """Close the tape at ``env``'s current state (after its last recorded step)."""
+        self.end = env.snapshot()
+        return self
+
+    def state_before(self, index: int) -> tuple[np.ndarray, ...]:
+        """The :func:`physics_state` before the tape's step ``index``."""
+        if index == 0:
+            return physics_state(self.start.data)
+        return self.states[index - 1]
+
+    def matches(self, index: int, action: Any) -> bool:
+        """Whether ``action`` is the one the tape's step ``index`` applied."""
+        applied = clean_action(action)
+        return (
+            applied is not None
+            and index < len(self.actions)
+            and applied.shape == self.actions[index].shape
+            and np.array_equal(applied, self.actions[index])
+        )
+
+    def set_state(self, index: int, model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        """Put ``data`` at the state after the tape's step ``index``, its positions derived."""
+        state = self.states[index]
+        for name, value in zip(_STATE_FIELDS, state, strict=False):
+            getattr(data, name)[:] = value
+        data.time = float(state[-1][0])
+        mujoco.mj_kinematics(model, data)
+
+    def output(self, index: int) -> StepOutputs:
+        """The outputs of the tape's step ``index``, copied (the tape can be played again)."""
+        observation, reward, terminated, truncated, info = self.outputs[index]
+        return (
+            {name: value.copy() for name, value in observation.items()},
+            reward,
+            terminated,
+            truncated,
+            {
+                name: (value.copy() if isinstance(value, np.ndarray | dict) else value)
+                for name, value in info.items()
+            },
+        )
