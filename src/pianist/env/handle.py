@@ -48,9 +48,9 @@ class ControlHandle:
     @property
     def data(self) -> mujoco.MjData:
         """The simulator state; consistent with ``qpos`` after every reset and step (while
-        the environment plays a tape back, :mod:`pianist.env.tape`, its positions and
-        velocities are; contacts, forces and sensors are brought up to date when the tape is
-        left)."""
+        the environment plays a tape back, :mod:`pianist.env.tape`, only ``qpos``, ``qvel``,
+        ``act``, ``ctrl``, ``userdata``, ``time`` and the poses derived from them are; the
+        rest is brought up to date when the tape is left)."""
         return self._env.data
 
     @property
@@ -108,9 +108,11 @@ class ControlHandle:
         return self._env.snapshot()
 
     def play_tape(self, tape: StepTape) -> bool:
-        """Let the environment play back steps recorded on a fork of it while the actions
-        are the recorded ones, instead of simulating them (:meth:`PianoEnv.play_tape`: the
-        episode is the same, only faster). Returns whether it took the tape."""
+        """Let the environment play back steps recorded (:class:`~pianist.env.tape.StepTape`)
+        on a fork of it from its current state while the actions are the recorded ones,
+        instead of simulating them (:meth:`PianoEnv.play_tape`: the episode is the same, only
+        faster). Returns whether it took the tape (one of another goal, configuration or
+        state is refused)."""
         return self._env.play_tape(tape)
 
     def fork(self, seed: int | None = None) -> PianoEnv:

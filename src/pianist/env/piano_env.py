@@ -46,7 +46,7 @@ import numpy as np
 from pianist.env import rewards as R
 from pianist.env.config import REWARD_TERMS, EnvConfig, make_config
 from pianist.env.events import EMPTY_EVENTS, key_events, sustain_event
-from pianist.env.tape import StepTape, same_state
+from pianist.env.tape import StepTape
 from pianist.music import GoalFrames, Song, goal_frames, load_song
 from pianist.sim import constants as C
 from pianist.sim.scene import Scene, build_scene
@@ -65,6 +65,20 @@ FORWARD_SIDES = ("right", "left")
 KEY_REST_TOLERANCE_RAD = np.deg2rad(0.05)
 #: Upward velocity written to a sleeping key to wake it.
 WAKE_VELOCITY_RAD_S = 1e-3
+#: The simulator's fields the steps to come depend on (with ``time``): a tape plays back only
+#: from a state equal in all of them (PianoEnv.play_tape).
+_STATE_FIELDS = (
+    "qpos",
+    "qvel",
+    "act",
+    "ctrl",
+    "userdata",
+    "qacc_warmstart",
+    "history",
+    "tree_asleep",
+    "qfrc_applied",
+    "xfrc_applied",
+)
 
 
 class SimulationUnstableError(RuntimeError):
@@ -321,28 +335,45 @@ class PianoEnv(gym.Env):
 
     def play_tape(self, tape: StepTape) -> bool:
         """Play ``tape``'s steps back from the next step on (:mod:`pianist.env.tape`): as
-        long as each step's action is the tape's, the step returns the recorded outputs and
-        sets the recorded state instead of simulating it. The episode is the same, bit for
-        bit, as simulating every step.
+        long as each step's action is the tape's, the step returns the recorded outcome (and
+        the observation made again from the recorded state) and sets the recorded state
+        instead of simulating it. The episode is the same, bit for bit, as simulating every
+        step.
 
         Args:
-            tape: steps recorded on a :meth:`fork` of this environment from its current
-                state, closed (:meth:`StepTape.finish`).
+            tape: steps recorded (:meth:`StepTape.record`) on a :meth:`fork` of this
+                environment in its current state, closed (:meth:`StepTape.finish`).
         Returns:
             Whether the tape was taken: not (and nothing changes) unless it is closed, has
-            steps, and starts at this environment's current step and state.
+            steps, was recorded with this environment's goal frames and configuration, and
+            starts at this environment's current step and state.
         """
         if (
             not self._started
             or tape.end is None
             or len(tape) == 0
-            or tape.start_step != self._t
-            or not same_state(tape.state_before(0), self.data)
+            or tape.goal is not self.goal
+            or tape.config != self.config
+            or not self._is_at(tape.start)
         ):
             return False
         self._leave_tape()
         self._tape = tape
         return True
+
+    def _is_at(self, state: EnvState) -> bool:
+        """Whether the episode is exactly at the snapshot ``state`` (its step, counters and
+        every field of the simulator state that the steps to come depend on)."""
+        if state.step != self._t or state.sustain != self._sustain:
+            return False
+        mine = (self._active, self._key_state, self._key_qpos_after_step, self._pending_events)
+        theirs = (state.active, state.key_state, state.key_qpos_after_step, state.pending_events)
+        if not all(np.array_equal(a, b) for a, b in zip(mine, theirs, strict=True)):
+            return False
+        return state.data.time == self.data.time and all(
+            np.array_equal(getattr(state.data, name), getattr(self.data, name))
+            for name in _STATE_FIELDS
+        )
 
     def _step_from_tape(
         self, action: np.ndarray
@@ -355,15 +386,16 @@ class PianoEnv(gym.Env):
             self._leave_tape()
             return None
         tape.set_state(index, self.model, self.data)
-        outputs = tape.output(index)
+        reward, terminated, truncated, info = tape.outcome(index)
         self._t += 1
-        self._active = outputs[4]["active_keys"].copy()
-        self._sustain = outputs[4]["sustain"]
+        self._active = info["active_keys"].copy()
+        self._sustain = info["sustain"]
         self._key_state = self.key_state()
         if index + 1 == len(tape):  # its last step: the full recorded state, and no tape
             assert tape.end is not None
             self.restore(tape.end)
-        return outputs
+        # Made from the state as a simulated step makes it (mj_kinematics after the step).
+        return self._observation(), reward, terminated, truncated, info
 
     def _leave_tape(self) -> None:
         """Stop playing the tape, the environment brought to exactly where simulating the

@@ -8,14 +8,19 @@ the recording to the environment (:meth:`PianoEnv.play_tape`): from then on each
 action is the tape's next returns the recorded outputs and sets the recorded state, at the
 cost of a copy instead of a control step of physics.
 
-While a tape plays, ``data`` holds each step's ``qpos``, ``qvel``, ``act``, ``ctrl``,
-``userdata`` and ``time`` and the positions derived from them (``mj_kinematics``); its other
-fields (contacts, forces, sensors) are brought up to date when the tape is left. The tape is
-left at the first action that is not the tape's, at a snapshot or fork, at its last step (the
-recorded final state is restored whole), and dropped at a reset or restore. Leaving it
-before its end restores its start and simulates the steps played from it, so the
-environment is then exactly where simulating every step would have put it: at worst a tape
-costs what playing without it does.
+A tape plays only in an environment of the same goal frames and configuration, from the
+state it was recorded from (every field of it). While it plays, ``data`` holds each step's
+``qpos``, ``qvel``, ``act``, ``ctrl``, ``userdata`` and ``time`` and the poses derived from
+them (``mj_kinematics``: what observations and rendering read); its other fields (contacts,
+forces, sensors and their history, tendon and actuator lengths, velocities of bodies) are
+stale until the tape is left. It is left at the first action that is not the tape's, at a
+snapshot or fork, and at its last step (the recorded final state is restored whole), and
+dropped at a reset or restore. Leaving it before its end restores its start and simulates
+the steps played from it, so the environment is then exactly where simulating every step
+would have put it: at worst a tape costs what playing without it does.
+
+The observations are not recorded (they are most of a step's outputs): the environment
+makes them again from the recorded state, bit for bit the simulated ones.
 """
 
 from __future__ import annotations
@@ -28,6 +33,8 @@ import numpy as np
 
 StepOutputs = tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]
 """What ``PianoEnv.step`` returns: observation, reward, terminated, truncated, info."""
+Outcome = tuple[float, bool, bool, dict[str, Any]]
+"""A recorded step's reward, terminated, truncated and info."""
 
 
 class Recordable(Protocol):
@@ -35,6 +42,8 @@ class Recordable(Protocol):
     import it, which imports this one)."""
 
     data: mujoco.MjData
+    config: Any
+    goal: Any
 
     def step(self, action: np.ndarray) -> StepOutputs: ...
     def snapshot(self) -> Any: ...
@@ -70,22 +79,26 @@ class StepTape:
 
     Attributes:
         start: the environment's full state before the first step (an ``EnvState``).
+        config: the environment's configuration (``EnvConfig``).
+        goal: its goal frames (``GoalFrames``; the tape plays only with this very object).
         actions: per step, the action as applied ((A,) float64, clipped).
-        outputs: per step, what ``step`` returned.
+        outcomes: per step, what ``step`` returned but the observation (read-only copies).
         states: per step, the :func:`physics_state` after it.
         end: the full state after the last step (None while recording; an ``EnvState``).
     """
 
     start: Any
+    config: Any
+    goal: Any
     actions: list[np.ndarray] = field(default_factory=list)
-    outputs: list[StepOutputs] = field(default_factory=list)
+    outcomes: list[Outcome] = field(default_factory=list)
     states: list[tuple[np.ndarray, ...]] = field(default_factory=list)
     end: Any = None
 
     @classmethod
     def begin(cls, env: Recordable) -> StepTape:
         """A tape starting at ``env``'s current state; step it with :meth:`record`."""
-        return cls(start=env.snapshot())
+        return cls(start=env.snapshot(), config=env.config, goal=env.goal)
 
     def __len__(self) -> int:
         return len(self.actions)
@@ -100,9 +113,13 @@ class StepTape:
         outputs = env.step(action)
         applied = clean_action(action)
         assert applied is not None  # step refuses a non-finite action
-        self.actions.append(applied)
-        self.outputs.append(outputs)
-        self.states.append(physics_state(env.data))
+        _, reward, terminated, truncated, info = outputs
+        kept = dict(info)  # copies: what the caller does with its outputs is its own
+        kept["active_keys"] = _frozen(info["active_keys"])
+        kept["reward_terms"] = dict(info["reward_terms"])
+        self.actions.append(_frozen(applied))
+        self.outcomes.append((reward, terminated, truncated, kept))
+        self.states.append(tuple(_frozen(x) for x in physics_state(env.data)))
         self.end = None
         return outputs
 
@@ -135,16 +152,18 @@ class StepTape:
         data.time = float(state[-1][0])
         mujoco.mj_kinematics(model, data)
 
-    def output(self, index: int) -> StepOutputs:
-        """The outputs of the tape's step ``index``, copied (the tape can be played again)."""
-        observation, reward, terminated, truncated, info = self.outputs[index]
-        return (
-            {name: value.copy() for name, value in observation.items()},
-            reward,
-            terminated,
-            truncated,
-            {
-                name: (value.copy() if isinstance(value, np.ndarray | dict) else value)
-                for name, value in info.items()
-            },
-        )
+    def outcome(self, index: int) -> Outcome:
+        """The reward, flags and info of the tape's step ``index`` (the info's arrays fresh
+        copies or views of the goal, as ``step`` returns them)."""
+        reward, terminated, truncated, kept = self.outcomes[index]
+        info = dict(kept)
+        info["active_keys"] = kept["active_keys"].copy()
+        info["reward_terms"] = dict(kept["reward_terms"])
+        return reward, terminated, truncated, info
+
+
+def _frozen(array: np.ndarray) -> np.ndarray:
+    """A read-only copy of ``array``."""
+    out = np.array(array)
+    out.setflags(write=False)
+    return out

@@ -109,6 +109,8 @@ class IKPlanner(BaseController):
             self.plan_kind = (cfg.hand_planning, refinger, cfg.hand_plan.objective)
             self._plan(goal, *self.plan_kind)
             chosen = self._snapshot(self.plan_kind)
+        for gone in [k for k, entry in _PLANS.items() if entry[0]() is None]:
+            del _PLANS[gone]  # its song is gone: its rehearsal's tape with it
         if len(_PLANS) >= _PLANS_KEPT:
             del _PLANS[next(iter(_PLANS))]
         _PLANS[key] = (weakref.ref(goal), chosen, self._replay, dict(self.rehearsed))
