@@ -121,6 +121,31 @@ def test_a_resumed_run_goes_on_as_an_uninterrupted_one(tmp_path, practised):
     assert resumed.pass_index == practised.pass_index
 
 
+def test_with_no_pass_limit_the_budget_ends_the_practice():
+    unlimited = dataclasses.replace(FAST, passes=None, plans=("best",))
+    with pytest.raises(ValueError, match="wall-clock budget"):
+        practise(SONG, unlimited)
+    # The budget is checked after each pass (the first always runs): it runs out at once.
+    result = practise(SONG, unlimited, stop_after_s=1e-3)
+    assert [row["pass"] for row in result.history] == [0, 1]
+
+
+def test_train_minutes_without_passes_is_a_budget_not_the_default_passes(tmp_path, capsys):
+    run = tmp_path / "run"
+    args = ["train", "twinkle-twinkle", "--preset", "practice", "--physics", "fast"]
+    assert main([*args, "--minutes", "0.001", "--out", str(run), "--no-progress"]) == 0
+    assert load_practice(run)[1].passes is None
+    # Resumed with --passes, that is the limit again.
+    assert main(["train", "--resume", str(run), "--passes", "2", "--no-progress"]) == 0
+    assert load_practice(run)[1].passes == 2
+    assert [json.loads(r)["pass"] for r in (run / "log.jsonl").read_text().splitlines()] == [
+        0,
+        1,
+        2,
+    ]
+    capsys.readouterr()
+
+
 def test_bad_practice_settings_are_refused():
     with pytest.raises(ValueError, match="at least 1 pass"):
         PracticeConfig(passes=0)

@@ -32,6 +32,7 @@ from __future__ import annotations
 import hashlib
 import io
 import json
+import sys
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
@@ -89,8 +90,10 @@ after 4 minutes; the first polonaise 0.749 / 0.729, then 0.834 / 0.811 (fast, on
 class PracticeConfig:
     """How a piece is practised."""
 
-    passes: int = 20
-    """Most practice passes (each plays the whole piece once with the refiner per worker)."""
+    passes: int | None = 20
+    """Most practice passes (each plays the whole piece once with the refiner per worker);
+    None: no limit, the wall-clock budget ends the practice (``pianist train --minutes M``
+    without ``--passes``)."""
     physics: str = "faithful"
     """The physics preset practised in, and played in afterwards: a table is a correction of
     that physics' trajectories and does not transfer to the other preset."""
@@ -107,7 +110,7 @@ class PracticeConfig:
     playing once each; it practises the one that plays best (the first of equals)."""
 
     def __post_init__(self) -> None:
-        if self.passes < 1:
+        if self.passes is not None and self.passes < 1:
             raise ValueError(f"practice needs at least 1 pass, not {self.passes}")
         if self.workers < 1:
             raise ValueError(f"practice needs at least 1 worker, not {self.workers}")
@@ -277,7 +280,8 @@ def practise(
     Args:
         song: the piece, fingered (the planner needs a finger on every note).
         config: passes, physics, seed, workers and the refiner's look-aheads.
-        stop_after_s: wall-clock budget in seconds (None: only ``passes``).
+        stop_after_s: wall-clock budget in seconds (None: only ``passes``, which must then
+            be a number).
         start: a result to continue from (its table, best F1 and history; the passes go on
             counting from its last).
         on_pass: called with the result so far after every pass (to save it).
@@ -286,6 +290,8 @@ def practise(
         The best table and the history of every pass.
     """
     config = config or PracticeConfig()
+    if config.passes is None and stop_after_s is None:
+        raise ValueError("practice with no limit on its passes needs a wall-clock budget")
     t0 = time.perf_counter()
     pool = _pool(config.workers)
     try:
@@ -297,7 +303,8 @@ def practise(
             result = start
         elapsed0 = result.history[-1]["seconds"] if result.history else 0.0
         first = result.history[-1]["pass"] + 1 if result.history else 1
-        for index in range(first, config.passes + 1):
+        last = config.passes if config.passes is not None else sys.maxsize
+        for index in range(first, last + 1):
             jobs = [
                 (
                     song,

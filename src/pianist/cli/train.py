@@ -47,8 +47,11 @@ class Train:
     """Run directory (created if missing)."""
     resume: Annotated[Path | None, tyro.conf.arg(help_behavior_hint="(optional)")] = None
     """Continue the run in this directory from its newest checkpoint."""
-    passes: Annotated[int | None, tyro.conf.arg(help_behavior_hint="(practice: default 20)")] = None
-    """--preset practice: the most passes over the piece (--minutes may stop it sooner)."""
+    passes: Annotated[
+        int | None, tyro.conf.arg(help_behavior_hint="(practice: default 20, or --minutes)")
+    ] = None
+    """--preset practice: the most passes over the piece (--minutes may stop it sooner; with
+    --minutes and no --passes, as many as the minutes allow)."""
     physics: Annotated[
         Literal["faithful", "fast"] | None,
         tyro.conf.arg(help_behavior_hint="(practice: default faithful)"),
@@ -148,6 +151,10 @@ class Train:
             config = PracticeConfig(physics=self.physics or "faithful", workers=2)
         if self.passes is not None:
             config = replace(config, passes=self.passes)
+        elif budget_s is not None:  # the budget is the limit, not the default passes
+            config = replace(config, passes=None)
+        elif config.passes is None:  # resumed from a run that had a budget, without one
+            config = replace(config, passes=PracticeConfig().passes)
         if self.workers is not None:
             config = replace(config, workers=self.workers)
         song = load_song(song_spec, fingering="auto")
