@@ -67,7 +67,7 @@ KEY_REST_TOLERANCE_RAD = np.deg2rad(0.05)
 WAKE_VELOCITY_RAD_S = 1e-3
 #: The simulator's fields the steps to come depend on (with ``time``): a tape plays back only
 #: from a state equal in all of them (PianoEnv.play_tape).
-_STATE_FIELDS = (
+_TAPE_START_FIELDS = (
     "qpos",
     "qvel",
     "act",
@@ -372,7 +372,7 @@ class PianoEnv(gym.Env):
             return False
         return state.data.time == self.data.time and all(
             np.array_equal(getattr(state.data, name), getattr(self.data, name))
-            for name in _STATE_FIELDS
+            for name in _TAPE_START_FIELDS
         )
 
     def _step_from_tape(
