@@ -381,6 +381,29 @@ def test_a_shift_holds_the_keys_before_it_as_long_as_it_can():
         IKPlanner(PlannerConfig(shift_lead_frames=2)).reset(env)
 
 
+def test_a_rest_between_two_notes_keeps_the_hand_over_its_keys():
+    # The right hand plays G4 and B4 three times with a frame's rest between; the left hand
+    # waits for its one note (C5, at 2.5 s) where that note will be, closer to the right
+    # forearm than the two may come. In the rests neither hand plays: the hand whose next
+    # note comes first keeps its place. (Both used to give way equally: the right hand left
+    # its keys for every rest and came back, a shift each time: 42 of the 56 key-frames.)
+    notes = [Note(72, 2.5, 3.0, finger=5)]
+    for i in range(3):
+        for key, finger in ((67, 1), (71, 3)):
+            notes.append(Note(key, 0.5 + 0.5 * i, 0.95 + 0.5 * i, finger=finger))
+    env = PianoEnv(Song(tuple(notes), name="rests"), physics="fast", **ENV_OPTIONS)
+    planner = IKPlanner()
+    episode = run_episode(env, planner, seed=0)
+    right = next(hand for hand in planner.hands if hand.side == "right")
+    due = env.goal.keys[:, [67 - 21, 71 - 21]]
+    frames = np.flatnonzero(due.any(axis=1))
+    assert len(np.unique(right.tx_plan[frames[0] : frames[-1] + 1])) == 1
+    # No shift in between (the hand may make way for the left one from its last frame on).
+    assert not right.free[frames[0] : frames[-1]].any()
+    down = np.asarray(episode.active_keys)[:, [67 - 21, 71 - 21]]
+    assert int((down & due).sum()) >= 52, int((down & due).sum())  # of 56
+
+
 def _held_then_leap() -> Song:
     """The right hand holds E4 and G4 (0.5-1.6 s) while a melody two octaves up starts at
     1.2 s; the left hand is busy with a bass far below, so it cannot take either."""

@@ -226,6 +226,10 @@ class PlannerConfig:
     """Weights of the whole-piece plan."""
     share_keys: bool = True
     """With the plan's fingering, offer the keys one hand cannot reach to the other hand."""
+    uncross_hands: bool = True
+    """Plan with the song's hand crossings (a right-hand key below a left-hand one) given to
+    the hand on that side (:func:`pianist.control.hand_order.uncross_hands`): the forearms
+    cannot cross, and a plan that sends one through the other loses both hands' keys."""
     clearance_cost: float = 5.0
     """Per frame, of a planned forearm position closer than ``forearm_separation_m`` to the
     other forearm's (in lost key-frames)."""

@@ -25,6 +25,7 @@ import numpy as np
 
 from pianist.control.base import BaseController
 from pianist.control.coverage import Coverage, plan_coverage, plan_key_classes, playable_mask
+from pianist.control.hand_order import uncross_hands
 from pianist.control.hand_plan import Objective
 from pianist.control.hand_split import SplitCosts, split_hands
 from pianist.control.planner.config import (
@@ -299,6 +300,8 @@ class IKPlanner(BaseController):
         key-frames the plan leaves playable."""
         cfg = self.config
         self._objective = objective
+        if cfg.uncross_hands and len(self.hands) == 2:
+            goal = self._uncrossed(goal)
         piece = kind in ("piece", "split")
         # The finger (0-9) that presses each due key: the song's, or the plan's.
         self.fingers = goal.fingers.copy()
@@ -317,6 +320,15 @@ class IKPlanner(BaseController):
             other = self.hands[1 - i] if len(self.hands) == 2 else None
             hand.plan_commands(self.model, self.dt, cfg, piece, hand.played_counts(self), other)
         return sum(hand.playable_keyframes(self) for hand in self.hands)
+
+    def _uncrossed(self, goal):
+        """``goal`` with the song's hand crossings given to the hand on that side
+        (:func:`pianist.control.hand_order.uncross_hands`); ``goal`` itself if it has none."""
+        fingers = uncross_hands(goal.keys, goal.fingers, self.key_point[:, 1])
+        if np.array_equal(fingers, goal.fingers):
+            return goal
+        fingers.setflags(write=False)
+        return dataclasses.replace(goal, fingers=fingers)
 
     def _plan_piece(self, goal, refinger: bool) -> None:
         """The whole-piece plan of both hands (:mod:`pianist.control.hand_plan`).

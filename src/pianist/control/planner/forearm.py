@@ -433,14 +433,30 @@ class ForearmPlan:
 def _keep_forearms_apart(a: ForearmPlan, b: ForearmPlan, separation: float) -> None:
     """Shift the forearm plans so the right forearm stays ``separation`` m right of the left.
 
-    A hand with nothing to play yields to the other; when both play, both give way equally.
+    The hand whose next note comes later yields to the other (a hand with nothing to play
+    to one that plays; of two idle hands, the one that waits longer); when both play, both
+    give way equally.
     """
     right, left = (a, b) if a.side == "right" else (b, a)
     y_right = right.tx_plan + right.root_y
     y_left = left.tx_plan + left.root_y
     short = np.maximum(separation - (y_right - y_left), 0.0)
-    right_share = np.where(
-        right.busy & ~left.busy, 0.0, np.where(left.busy & ~right.busy, 1.0, 0.5)
-    )
+    # Of two idle hands the one that waits longer yields: sharing the way, a hand resting a
+    # frame between two notes is pushed off its keys by the other's waiting place and comes
+    # back, a shift each time (Schoenberg op. 19/2: 100 frames).
+    wait_right, wait_left = _frames_to_next_note(right.busy), _frames_to_next_note(left.busy)
+    right_share = np.where(wait_right < wait_left, 0.0, np.where(wait_left < wait_right, 1.0, 0.5))
     right.tx_plan = np.clip(right.tx_plan + short * right_share, *right.tx_range)
     left.tx_plan = np.clip(left.tx_plan - short * (1 - right_share), *left.tx_range)
+
+
+def _frames_to_next_note(busy: np.ndarray) -> np.ndarray:
+    """(T,) frames from each frame to the hand's next busy frame (0 when busy; inf after its
+    last note)."""
+    T = busy.shape[0]
+    known = np.flatnonzero(busy)
+    nxt = np.searchsorted(known, np.arange(T))
+    wait = np.full(T, np.inf)
+    ok = nxt < known.size
+    wait[ok] = known[nxt[ok]] - np.arange(T)[ok]
+    return wait
