@@ -4,9 +4,9 @@ A score may cross the hands: Clara Schumann's third and fourth polonaises (op. 1
 right hand reach over the left for bass notes, 35 and 43 frames of them. Two forearms on
 slides cannot cross, so a plan that follows such a fingering sends the right forearm through
 the left one, and keeping the forearms apart afterwards (``_keep_forearms_apart``) pushes
-both away from every key they were due to play. :func:`uncross_hands` gives each crossing
-note to the other hand instead, the fewest notes that put every frame's hands in order (the
-left hand's keys all below the right hand's); the plan then fingers them as its own.
+both away from every key they were due to play. :func:`uncross_hands` gives crossing notes
+to the other hand instead, as few of their key-frames as put every frame's hands in order
+(the left hand's keys all below the right hand's); the plan then fingers them as its own.
 
 Arrays in, arrays out: (T, 88) frames by keys; fingers 0-4 the right hand (thumb to little
 finger), 5-9 the left.
