@@ -323,12 +323,18 @@ class IKPlanner(BaseController):
 
     def _uncrossed(self, goal):
         """``goal`` with the song's hand crossings given to the hand on that side
-        (:func:`pianist.control.hand_order.uncross_hands`); ``goal`` itself if it has none."""
+        (:func:`pianist.control.hand_order.uncross_hands`); ``goal`` itself if it has none.
+        Made once per goal: every candidate plan of a reset asks for it."""
+        cached = getattr(self, "_uncrossed_goal", None)
+        if cached is not None and cached[0] is goal:
+            return cached[1]
         fingers = uncross_hands(goal.keys, goal.fingers, self.key_point[:, 1])
-        if np.array_equal(fingers, goal.fingers):
-            return goal
-        fingers.setflags(write=False)
-        return dataclasses.replace(goal, fingers=fingers)
+        planned = goal
+        if not np.array_equal(fingers, goal.fingers):
+            fingers.setflags(write=False)
+            planned = dataclasses.replace(goal, fingers=fingers)
+        self._uncrossed_goal = (goal, planned)
+        return planned
 
     def _plan_piece(self, goal, refinger: bool) -> None:
         """The whole-piece plan of both hands (:mod:`pianist.control.hand_plan`).
