@@ -1,9 +1,10 @@
 """The generalist: F1 on held-out pieces, and how it scales with training songs and model size.
 
 ``eval``: one policy (default: the shipped generalist; a fingertip policy folder or a
-behaviour-cloning one) plays every song of the held-out suites once (seed 0, fast physics)
-in NumPy; per song F1, precision, recall and the real-time factor (simulated seconds per
-wall-clock second), and the mean per suite.
+behaviour-cloning one) plays every song of the held-out suites once (seed 0, fast physics
+or ``--physics faithful``) in NumPy; per song F1, precision, recall and the real-time factor
+(simulated seconds per wall-clock second), and the mean per suite. A fingertip policy's
+forearms follow the plan's path, or with ``--forearm policy`` its own slide targets.
 
 ``fingertip-scaling``: the same experiment for the fingertip policy (the shipped design,
 :mod:`pianist.agents.fingertip.training`): for each N and network size, a policy trained on
@@ -18,7 +19,8 @@ also on its own training songs (up to 8 of them). The paper's figure is printed 
 distilled from its RL specialists, <= ~0.15 zero-shot on etude-12.
 
 Run:
-    python benchmarks/bench_generalist.py eval [--policy DIR] [--suites open-etude-12,debug]
+    python benchmarks/bench_generalist.py eval [--policy DIR] [--suites open-etude-12,debug] \
+        [--forearm plan|policy] [--physics fast|faithful]
     python benchmarks/bench_generalist.py fingertip-scaling \
         --corpus corpus/chorales-all corpus/etudes-400 [--sizes 8,64,256] \
         [--hidden 256x256,512x512] [--rounds 1] [--fingering plan|song]
@@ -54,14 +56,18 @@ from pianist.music import list_songs
 PAPER_BC_ETUDE12 = "<= ~0.15"
 
 
-def evaluate_fingertip(policy: Any, songs: list[str]) -> dict[str, dict[str, float]]:
-    """Each song played once (seed 0, fast physics) by a fingertip policy (or its folder)."""
+def evaluate_fingertip(
+    policy: Any, songs: list[str], forearm: str | None = None, physics: str = "fast"
+) -> dict[str, dict[str, float]]:
+    """Each song played once (seed 0) by a fingertip policy (or its folder); ``forearm``:
+    where its forearms go (None: the controller's default, the plan's path)."""
     from pianist.agents.fingertip import FingertipController
     from pianist.eval.session import play
 
     rows: dict[str, dict[str, float]] = {}
     for song in songs:
-        m = play(song, FingertipController(policy), physics="fast", seed=0).metrics
+        controller = FingertipController(policy, forearm=forearm)  # type: ignore[arg-type]
+        m = play(song, controller, physics=physics, seed=0).metrics
         rows[song] = {
             "f1": m["f1"],
             "precision": m["precision"],
@@ -95,11 +101,22 @@ def cmd_eval(args: argparse.Namespace) -> dict[str, Any]:
     policy: Any
     if (args.policy / fingertip.controller.CONFIG_FILE).is_file():
         policy = fingertip.load_policy(args.policy)
-        play_all: Any = evaluate_fingertip
+
+        def play_all(policy: Any, songs: list[str]) -> dict[str, dict[str, float]]:
+            return evaluate_fingertip(policy, songs, args.forearm, args.physics)
+
+        forearm = fingertip.FingertipController(policy, forearm=args.forearm).forearm
     else:
         policy = load_policy(args.policy)
-        play_all = evaluate
-    result: dict[str, Any] = {"policy": str(args.policy), "info": policy.info, "suites": {}}
+        play_all = evaluate  # type: ignore[assignment]
+        forearm = None
+    result: dict[str, Any] = {
+        "policy": str(args.policy),
+        "info": policy.info,
+        "forearm": forearm,
+        "physics": args.physics if forearm else "fast",
+        "suites": {},
+    }
     print(f"{'suite':18s} {'song':40s} {'F1':>6s} {'P':>6s} {'R':>6s} {'rtf':>6s}")
     for suite in args.suites.split(","):
         rows = play_all(policy, list_songs(suite))
@@ -221,6 +238,13 @@ def main() -> None:
     ev = sub.add_parser("eval", help="score one policy on held-out suites")
     ev.add_argument("--policy", type=Path, default=GENERALIST_DIR)
     ev.add_argument("--suites", default="open-etude-12,debug,robopianist-debug")
+    ev.add_argument(
+        "--forearm",
+        choices=["plan", "policy"],
+        default=None,
+        help="a fingertip policy's forearms: along the plan's path (its default) or its own",
+    )
+    ev.add_argument("--physics", choices=["fast", "faithful"], default="fast")
     fs = sub.add_parser("fingertip-scaling", help="the fingertip policy against training songs")
     fs.add_argument("--corpus", required=True, nargs="+", help="folders of training songs (.txt)")
     fs.add_argument("--sizes", default="8,64,256")

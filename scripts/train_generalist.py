@@ -57,6 +57,13 @@ def main() -> int:
         default="plan",
         help="the fingering the policy reads: the planner's plan for this robot, or the song's",
     )
+    parser.add_argument(
+        "--forearm",
+        choices=["plan", "policy"],
+        default=None,
+        help="where the policy's forearms go in the DAgger rounds: along the plan's path (the "
+        "default with the plan's fingering, as it plays) or to its own slide targets",
+    )
     parser.add_argument("--out", type=Path, default=GENERALIST_DIR)
     args = parser.parse_args()
 
@@ -71,7 +78,7 @@ def main() -> int:
         songs += sorted(str(path) for path in etudes.glob("*.txt"))
         corpora.append(etudes.name)
     config = FitConfig(hidden_dims=tuple(args.hidden), steps=args.steps)
-    policy = train(songs, args.rounds, config, args.workers, log, args.fingering)
+    policy = train(songs, args.rounds, config, args.workers, log, args.fingering, args.forearm)
     policy.info["trained_by"] = "scripts/train_generalist.py " + " ".join(sys.argv[1:])
     policy.info["corpus"] = "+".join(corpora)
     save_policy(policy, args.out)

@@ -224,7 +224,9 @@ def test_the_expert_records_one_row_per_hand_and_step():
 
 
 def test_dagger_labels_the_policys_own_view():
-    controller = FingertipController(_zero_policy(), expert=ExpertRecorder(expert_config()))
+    controller = FingertipController(
+        _zero_policy(), expert=ExpertRecorder(expert_config()), forearm="policy"
+    )
     play(SONG, controller, physics="fast", seed=0)
     # The recorded features are the policy's (its own last modes: all lifted, from the zero
     # network's argmax), the labels the expert's (its fingers go for their keys; they never
@@ -235,6 +237,44 @@ def test_dagger_labels_the_policys_own_view():
     assert (y[:, 2:].reshape(-1, FINGERS, NUM_MODES).argmax(2) == Mode.HOVER).any()
     last_mode = x[:, -NUM_MODES:]  # the little finger's last mode, one-hot
     assert (last_mode.argmax(1) == Mode.LIFT).all()
+
+
+class _Slides(FingertipController):
+    """Notes every hand's slide position (m) and its plan's, before each step."""
+
+    def act(self, observation=None):
+        if not hasattr(self, "trace"):
+            self.trace = []
+        data, t = self.stages.handle.data, self.stages.handle.step_index
+        for hand in self.stages.hands:
+            self.trace.append((hand.side, t, data.qpos[hand.tx_qpos], hand.tx_path[t + 1, 0]))
+        return super().act(observation)
+
+
+@pytest.mark.parametrize("forearm", ["plan", "policy"])
+def test_the_forearms_follow_the_plan_or_the_policy(forearm):
+    # The zero network asks every slide to stay where it is; the plan moves the right hand
+    # up the scale. Following the plan, the hand tracks its path; following the policy, it
+    # stays put.
+    controller = _Slides(_zero_policy(), forearm=forearm)
+    play(SONG, controller, physics="fast", seed=0)
+    right = np.array([(x, plan) for side, _, x, plan in controller.trace if side == "right"])
+    travel = right[:, 1].max() - right[:, 1].min()
+    assert travel > 0.03  # the plan moves the hand
+    if forearm == "plan":
+        assert np.median(np.abs(right[:, 0] - right[:, 1])) < 0.005
+        assert right[:, 0].max() - right[:, 0].min() > 0.8 * travel
+    else:
+        assert right[:, 0].max() - right[:, 0].min() < 0.003
+
+
+def test_the_forearm_default_and_bad_choices():
+    assert FingertipController(_zero_policy("plan")).forearm == "plan"
+    assert FingertipController(_zero_policy("song")).forearm == "policy"  # no plan to follow
+    with pytest.raises(ValueError, match="needs a policy that reads the plan"):
+        FingertipController(_zero_policy("song"), forearm="plan")
+    with pytest.raises(ValueError, match="unknown forearm"):
+        FingertipController(_zero_policy(), forearm="sideways")
 
 
 def test_a_policy_round_trips_and_bad_folders_are_refused(tmp_path):

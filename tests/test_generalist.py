@@ -51,3 +51,12 @@ def test_a_missing_generalist_is_one_line(monkeypatch, tmp_path, capsys):
     assert main(["play", SONG, "--controller", "generalist", "--out", str(tmp_path / "o")]) == 1
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "generalist" in err[0] and "reinstall" in err[0]
+
+
+def test_the_generalist_spec_chooses_where_its_forearms_go():
+    from pianist.agents.specs import controller_from_spec
+
+    assert controller_from_spec("generalist").forearm == "plan"
+    assert controller_from_spec("generalist:forearm=policy").forearm == "policy"
+    with pytest.raises(ValueError, match="unknown generalist option"):
+        controller_from_spec("generalist:forearm=sideways")

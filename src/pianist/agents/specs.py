@@ -2,8 +2,9 @@
 command line, sweeps and datasets share.
 
 ``policy:RUN_DIR`` (a trained agent, or a practised piece: a ``--preset practice`` run),
-``bc:DIR`` (a behaviour-cloning policy), ``generalist``
-(the behaviour-cloning policy shipped with the package), or anything
+``bc:DIR`` (a behaviour-cloning policy), ``generalist`` (the fingertip policy shipped with
+the package; ``generalist:forearm=policy``: its forearms go to its own slide targets
+instead of along the plan's path), or anything
 :func:`pianist.control.make_controller` takes (``planner``, ``refine[:...]``, ``search[:...]``,
 ``mpc[:...]``, ``random``, ``zero``, ``replay:ACTIONS.npy``).
 """
@@ -27,10 +28,15 @@ def controller_from_spec(spec: str) -> Any:
         if is_practice_run(run_dir):
             return CorrectedPlanner.load(run_dir)
         return PolicyController(run_dir)
-    if spec == "generalist":
+    if spec == "generalist" or spec.startswith("generalist:"):
         from pianist.agents.generalist import generalist_controller
 
-        return generalist_controller()
+        option = spec.removeprefix("generalist").removeprefix(":")
+        if option not in ("", "forearm=plan", "forearm=policy"):
+            raise ValueError(
+                f"unknown generalist option {option!r}: use forearm=plan or forearm=policy"
+            )
+        return generalist_controller(option.removeprefix("forearm=") or None)  # type: ignore[arg-type]
     if spec.startswith("bc:"):
         from pianist.agents.bc import BCController
 

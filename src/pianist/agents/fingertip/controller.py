@@ -2,11 +2,13 @@
 
 Each step, for each hand, the policy (:mod:`features`) says where the forearm's slide should
 be at the end of the next step and what each finger does (:class:`Mode`); this module turns
-that into the action with the planner's fixed stages, following no plan (a policy that reads
-the plan's fingering has the planner plan the piece at reset for that alone):
+that into the action with the planner's fixed stages, following no plan at step time (a
+policy that reads the plan's fingering has the planner plan the piece at reset, a fraction
+of a second, and by default its forearms follow that plan's path: :data:`Forearm`):
 
-1. the slide is steered to the policy's target through its servo's exact dynamics (the
-   planner's ``_Servo``), the height slide and the wrist held as the planner holds them;
+1. the slide is steered to its target (the plan's path, or the policy's own target) through
+   its servo's exact dynamics (the planner's ``_Servo``), the height slide and the wrist held
+   as the planner holds them;
 2. each finger's fingertip target follows from its mode and its next key by the song's
    fingering: below the key's top (press), above it (hover, re-strike), or the lifted
    posture; a pressing finger whose key does not sound is pushed harder, as the planner does;
@@ -172,6 +174,15 @@ def load_policy(folder: str | Path) -> FingertipPolicy:
 Fingering = Literal["song", "plan"]
 
 
+#: Where a policy's forearm slides go. ``"plan"``: along the path of the whole-piece plan
+#: made at reset (the plan whose fingering the policy reads; the expert's own slide labels
+#: are that path), so the policy decides every finger and the plan the hands' places.
+#: ``"policy"``: to the policy's own slide targets. The shipped policy plays open-etude-12 at
+#: 0.766 one way and 0.741 the other (fast): its slide was what it imitated worst
+#: (``docs/generalist.md``).
+Forearm = Literal["plan", "policy"]
+
+
 def read_fingering(p: IKPlanner, fingering: Fingering) -> np.ndarray:
     """(T, 88) int: the finger (0-9) that presses each due key, -1 where none.
 
@@ -191,13 +202,15 @@ class FingertipController(BaseController):
     """Plays any fingered song with a :class:`FingertipPolicy` (no plan followed, no
     look-ahead past :data:`WINDOW` frames). ``expert``: an :class:`IKPlanner` run in
     lock-step on the same states whose decisions are recorded as labels (DAgger), not
-    played."""
+    played. ``forearm``: :data:`Forearm`; None, ``"plan"`` for a policy that reads the
+    plan's fingering (there is a plan to follow), else ``"policy"``."""
 
     def __init__(
         self,
         policy: FingertipPolicy | str | Path,
         config: PlannerConfig | None = None,
         expert: ExpertRecorder | None = None,
+        forearm: Forearm | None = None,
     ) -> None:
         self.policy = policy if isinstance(policy, FingertipPolicy) else load_policy(policy)
         self.config = config or PLAN_FINGERING_CONFIG
@@ -207,6 +220,14 @@ class FingertipController(BaseController):
                 f"the policy reads the {self.fingering} fingering, its expert labels with the "
                 f"{expert.fingering} one"
             )
+        if forearm not in (None, "plan", "policy"):
+            raise ValueError(f"unknown forearm {forearm!r}: use 'plan' or 'policy'")
+        if forearm == "plan" and self.fingering != "plan":
+            raise ValueError(
+                "forearm 'plan' needs a policy that reads the plan's fingering (this one reads "
+                "the song's: no plan is made)"
+            )
+        self.forearm: Forearm = forearm or ("plan" if self.fingering == "plan" else "policy")
 
     def env_options(self, song: Any = None) -> dict[str, Any]:
         """The planner's scene (forearm height slide), whatever the song."""
@@ -247,12 +268,15 @@ class FingertipController(BaseController):
         ctrl = np.array(data.ctrl)
         scratch.qpos[:] = data.qpos
         for hand, servo, o in zip(p.hands, self.servos, out, strict=True):
-            sign = 1.0 if hand.side == "right" else -1.0
-            tx, vel = float(data.qpos[hand.tx_qpos]), float(data.qvel[hand.tx_dof])
-            move, speed = decode_move(o[0], MOVE_UNIT_M), decode_move(o[1], SPEED_UNIT)
-            target = np.array([tx + sign * move, sign * speed])
-            ctrl[hand.tx_actuator] = servo.command(np.array([tx, vel]), target)
-            hand.command_height(ctrl, data, cfg)
+            if self.forearm == "plan":
+                hand.command_forearm(ctrl, data, t, cfg)  # as the expert: the plan's path
+            else:
+                sign = 1.0 if hand.side == "right" else -1.0
+                tx, vel = float(data.qpos[hand.tx_qpos]), float(data.qvel[hand.tx_dof])
+                move, speed = decode_move(o[0], MOVE_UNIT_M), decode_move(o[1], SPEED_UNIT)
+                target = np.array([tx + sign * move, sign * speed])
+                ctrl[hand.tx_actuator] = servo.command(np.array([tx, vel]), target)
+                hand.command_height(ctrl, data, cfg)
             hand.set_wrist(scratch, ctrl, cfg)
             # As the planner: aim from where the moving forearm will be a little later.
             scratch.qpos[hand.tx_qpos] += cfg.forearm_lead_s * data.qvel[hand.tx_dof]

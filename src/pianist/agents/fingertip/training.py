@@ -33,6 +33,7 @@ from pianist.agents.fingertip.controller import (
     Fingering,
     FingertipController,
     FingertipPolicy,
+    Forearm,
     save_policy,
 )
 from pianist.control.planner import PlannerConfig
@@ -78,14 +79,16 @@ class Recording:
 
 
 def _play_one(
-    args: tuple[str, str | None, str, Fingering],
+    args: tuple[str, str | None, str, Fingering, Forearm | None],
 ) -> tuple[np.ndarray, np.ndarray, float]:
     from pianist.eval.session import play
 
-    song, policy_dir, physics, fingering = args
+    song, policy_dir, physics, fingering, forearm = args
     expert = ExpertRecorder(expert_config(fingering), fingering)
     controller: Any = (
-        expert if policy_dir is None else FingertipController(policy_dir, expert=expert)
+        expert
+        if policy_dir is None
+        else FingertipController(policy_dir, expert=expert, forearm=forearm)
     )
     result = play(song, controller, physics=physics, seed=0)
     return np.concatenate(expert.features), np.concatenate(expert.labels), result.metrics["f1"]
@@ -98,17 +101,19 @@ def record(
     physics: str = "fast",
     log: Log | None = None,
     fingering: Fingering = "plan",
+    forearm: Forearm | None = None,
 ) -> Recording:
     """Play each song once (song names or files): the expert alone (``policy`` None), or the
     policy with the expert labelling its states; ``f1`` is the player's. ``fingering``: the
-    one the policy reads (a policy's own ``info["fingering"]`` must agree)."""
+    one the policy reads (a policy's own ``info["fingering"]`` must agree); ``forearm``:
+    where the policy's forearms go (:data:`~pianist.agents.fingertip.controller.Forearm`)."""
     if policy is not None and policy.info.get("fingering", "song") != fingering:
         raise ValueError(f"the policy reads the {policy.info.get('fingering', 'song')} fingering")
     with tempfile.TemporaryDirectory() as tmp:
         policy_dir = None
         if policy is not None:
             policy_dir = str(save_policy(policy, Path(tmp) / "policy"))
-        jobs = [(str(song), policy_dir, physics, fingering) for song in songs]
+        jobs = [(str(song), policy_dir, physics, fingering, forearm) for song in songs]
         if workers <= 1:
             results = [_play_one(job) for job in jobs]
         else:
@@ -152,10 +157,12 @@ def train(
     workers: int = 2,
     log: Log | None = None,
     fingering: Fingering = "plan",
+    forearm: Forearm | None = None,
 ) -> FingertipPolicy:
     """The expert's recordings of ``songs``, a fit, then ``rounds`` of DAgger, each on the
     next 1/``rounds`` of the songs (every song played once by the policy over the rounds).
-    ``fingering``: the one the policy reads (:func:`expert_config`)."""
+    ``fingering``: the one the policy reads (:func:`expert_config`); ``forearm``: where the
+    policy's forearms go in its DAgger rounds (None: as it will play)."""
     config = config or FitConfig()
     say = log or (lambda line: None)
     start = time.perf_counter()
@@ -169,7 +176,7 @@ def train(
     for r in range(rounds):
         share = list(songs[r::rounds])
         say(f"DAgger round {r + 1}/{rounds}: the policy plays {len(share)} songs")
-        played = record(share, policy, workers, log=say, fingering=fingering)
+        played = record(share, policy, workers, log=say, fingering=fingering, forearm=forearm)
         xs.append(played.x)
         ys.append(played.y)
         steps += config.round_steps
@@ -186,6 +193,7 @@ def train(
         {
             "songs": len(songs),
             "rounds": rounds,
+            "dagger_forearm": forearm or ("plan" if fingering == "plan" else "policy"),
             "fit": {**asdict(config), "hidden_dims": list(config.hidden_dims)},
             "history": history,
             "minutes": round((time.perf_counter() - start) / 60, 1),
