@@ -35,7 +35,9 @@ class Play:
     search:segment_steps=10,variants=plain+stiff-wrist); mpc (the
     paper's predictive sampling; mpc:tenth, or e.g.
     mpc:paper,num_samples=20,sigma=0.1,horizon_s=0.3,num_knots=3,iterations=8); generalist
-    (the policy shipped with the package, for any song; the plan only fingers it at reset);
+    (the policy shipped with the package, for any song: the plan made at reset fingers it and
+    places the hands, the policy decides every finger; generalist:forearm=policy, its own
+    slide targets);
     policy:RUN_DIR (a trained agent); bc:DIR (a behaviour-cloning policy); random; zero; or
     replay:ACTIONS.npy."""
     refine: bool = False
