@@ -14,7 +14,7 @@
 
 Needs the ``rl`` extra (JAX). Run from the repository root:
 
-    python scripts/train_generalist.py [--chorales 0] [--etudes 400] [--rounds 3] [--workers 2]
+    python scripts/train_generalist.py [--chorales 0] [--etudes 400] [--rounds 4] [--workers 2]
 """
 
 from __future__ import annotations
@@ -49,7 +49,7 @@ def main() -> int:
     parser.add_argument("--etudes", type=int, default=400, help="generated etudes; 0: none")
     parser.add_argument("--hidden", type=int, nargs="+", default=[256, 256])
     parser.add_argument("--steps", type=int, default=6000)
-    parser.add_argument("--rounds", type=int, default=3)
+    parser.add_argument("--rounds", type=int, default=4)
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument(
         "--fingering",

@@ -179,7 +179,7 @@ Fingering = Literal["song", "plan"]
 #: are that path), so the policy decides every finger and the plan the hands' places.
 #: ``"policy"``: to the policy's own slide targets. A policy trained deciding its slide
 #: played open-etude-12 at 0.766 one way and 0.741 the other (fast): its slide was what it
-#: imitated worst. The one shipped, trained along the plan, plays 0.770 and 0.527
+#: imitated worst. The one shipped, trained along the plan, plays 0.777 and 0.531
 #: (``docs/generalist.md``).
 Forearm = Literal["plan", "policy"]
 
