@@ -691,3 +691,62 @@ def test_a_re_strike_is_pushed_down_again_from_its_first_step():
         assert pushed_again.any() == any(p > 0 for p in push)
     assert again.sum() == 43
     assert on_time[0] >= on_time[1] + 2 and f1[0] > f1[1]
+
+
+def _reference_ik(hand, m, scratch, targets, active, cfg):
+    """The IK solved one finger at a time, as ``FingerIK`` documents it (no push)."""
+    angles = {}
+    for f, finger in enumerate(hand.fingers):
+        if active[f]:
+            tips = finger.sample_tips - targets[f]
+            angles[f] = finger.samples[np.argmin((tips**2).sum(axis=1))].copy()
+        else:
+            angles[f] = finger.lift.copy()
+        finger.set(scratch, angles[f])
+    jacp = np.zeros((3, m.nv))
+    for _ in range(cfg.iterations):
+        mujoco.mj_kinematics(m, scratch)
+        mujoco.mj_comPos(m, scratch)
+        origin = scratch.xpos[hand.forearm_body]
+        for f in np.flatnonzero(active):
+            finger = hand.fingers[f]
+            error = targets[f] - (scratch.site_xpos[finger.site] - origin)
+            mujoco.mj_jacSite(m, scratch, jacp, None, finger.site)
+            J = finger.jacobian(jacp)
+            if f == 0:
+                weights = np.array([1.0, cfg.thumb_lateral_weight, 1.0])
+                J, error = J * weights[:, None], error * weights
+            A = J.T @ J + (cfg.damping**2 + cfg.rest_weight) * np.eye(finger.dof)
+            step = np.clip(np.linalg.solve(A, J.T @ error), -cfg.step_limit_rad, cfg.step_limit_rad)
+            angles[f] = np.clip(angles[f] + step, finger.low, finger.high)
+            finger.set(scratch, angles[f])
+    return np.concatenate([angles[f] for f in range(len(hand.fingers))])
+
+
+def test_the_fingers_solved_together_match_each_finger_solved_alone():
+    # The IK pads the five fingers to one width and solves them in one batch; every finger
+    # must end where the one-at-a-time solve puts it, for any subset of active fingers.
+    # The full action space: the thumb has five actuators, the little finger four.
+    env = PianoEnv("c-major-scale-both", physics="fast", **ENV_OPTIONS, reduced_action_space=False)
+    planner = IKPlanner()
+    env.reset(seed=0)
+    planner.reset(env, seed=0)
+    m, scratch, cfg = env.model, planner.scratch, planner.config
+    rng = np.random.default_rng(3)
+    for hand in planner.hands:
+        hand.pressing[:] = False  # the push after the solve is checked elsewhere
+        assert len({finger.dof for finger in hand.fingers}) > 1  # padding is exercised
+        for trial in range(6):
+            active = rng.random(5) < 0.6
+            active[trial % 5] = True
+            # Targets around the fingers' resting places, some beyond their reach.
+            targets = hand.rest_tips + rng.normal(0.0, 0.015, (5, 3))
+            start = env.data.qpos.copy()
+            scratch.qpos[:] = start
+            hand.solve(m, scratch, targets, active, cfg)
+            batched = hand.finger_controls(scratch)
+            solved_qpos = scratch.qpos.copy()
+            scratch.qpos[:] = start
+            reference = _reference_ik(hand, m, scratch, targets, active, cfg)
+            np.testing.assert_allclose(batched, reference, atol=1e-9)
+            np.testing.assert_allclose(solved_qpos, scratch.qpos, atol=1e-9)
