@@ -32,7 +32,6 @@ class _Batch:
     Arrays (F = 5 fingers, D = the most actuators of a finger, S = posture samples, J = the
     most joints of a finger):
 
-    - ``valid`` (F, D) bool: which padded slots are real actuators;
     - ``low``, ``high`` (F, D) rad: actuator limits (0 for padding);
     - ``dofs`` (F, J) int: each finger's joint dof addresses (padding: dof 0, unused);
     - ``mix`` (F, J, D): joint velocities -> actuator space (zero rows for padding);
@@ -51,7 +50,6 @@ class _Batch:
         S = len(fingers[0].samples)
         self.width = D
         self.sites = np.array([f.site for f in fingers])
-        self.valid = np.zeros((F, D), dtype=bool)
         self.low, self.high = np.zeros((F, D)), np.zeros((F, D))
         self.dofs = np.zeros((F, J), dtype=int)
         self.mix = np.zeros((F, J, D))
@@ -60,7 +58,6 @@ class _Batch:
         qpos, source, share = [], [], []
         for f, finger in enumerate(fingers):
             d, j = finger.dof, len(finger._dofs)
-            self.valid[f, :d] = True
             self.low[f, :d], self.high[f, :d] = finger.low, finger.high
             self.dofs[f, :j] = finger._dofs
             self.mix[f, :j, :d] = finger._mix

@@ -55,14 +55,6 @@ class Finger:
         self._dofs = np.concatenate(self.dofs)
         self._mix = np.zeros((len(owner), self.dof))  # joint velocities -> actuator space
         self._mix[np.arange(len(owner)), owner] = self._share
-        self._diagonals: dict[float, np.ndarray] = {}
-
-    def diagonal(self, value: float) -> np.ndarray:
-        """(dof, dof) ``value`` times the identity (the IK's damping, made once per value)."""
-        cached = self._diagonals.get(value)
-        if cached is None:
-            cached = self._diagonals[value] = value * np.eye(self.dof)
-        return cached
 
     def set(self, data, angles: np.ndarray) -> None:
         data.qpos[self._qpos] = angles[self._owner] * self._share
