@@ -9,6 +9,7 @@ import pytest
 from pianist.control import make_controller
 from pianist.control.planner import ENV_OPTIONS, FingerState, IKPlanner, PlannerConfig
 from pianist.env import PianoEnv
+from pianist.env.piano_env import action_to_ctrl
 from pianist.eval import run_episode
 from pianist.eval.session import make_env
 from pianist.music import Note, Song, load_song
@@ -99,6 +100,27 @@ def test_the_papers_scene_without_the_height_slide_still_plays_the_fingers():
         "ty",
     )
     assert IKPlanner().env_options()["forearm_dofs"] == ("tx", "ty", "tz")
+
+
+def test_in_the_full_action_space_the_joints_of_the_reduced_hand_alone_are_moved():
+    # The full hand has THJ5, THJ1 and LFJ5 besides, and THJ2 down to -0.698 rad. The planner
+    # holds them as the reduced hand has them (commanded 0, THJ2 >= 0) and plays Twinkle as
+    # it does there (0.967; moving them, 0.823).
+    song = load_song("twinkle-twinkle")
+    env = PianoEnv(song, physics="fast", reduced_action_space=False, **ENV_OPTIONS)
+    names = env.unwrapped.action_names
+    held = [i for i, name in enumerate(names) if name.endswith(("THJ5", "THJ1", "LFJ5"))]
+    thj2 = [i for i, name in enumerate(names) if name.endswith("THJ2")]
+    assert len(held) == 6 and len(thj2) == 2
+    episode = run_episode(env, IKPlanner(), seed=0)
+    actions = np.asarray(episode.actions)[:, :-1]
+    ctrl = action_to_ctrl(actions, env.unwrapped.model.actuator_ctrlrange)
+    assert np.allclose(ctrl[:, held], 0.0, atol=1e-6)
+    assert ctrl[:, thj2].min() >= -1e-6 and ctrl[:, thj2].max() > 0.1  # the thumb still moves
+    assert episode.metrics()["f1"] >= 0.94
+    # Asked to move them too, the planner does.
+    moving = run_episode(env, IKPlanner(PlannerConfig(full_hand=True)), seed=0)
+    assert np.ptp(np.asarray(moving.actions)[:, held], axis=0).max() > 0.1
 
 
 FRAME = PlannerConfig(hand_planning="frame")

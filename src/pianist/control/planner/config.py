@@ -283,6 +283,12 @@ class PlannerConfig:
     paper_embodiment: bool = False
     """Play in the paper's scene (forearm slides ``tx`` and ``ty`` only) instead of declaring
     the height slide (:data:`ENV_OPTIONS`): the thumb then cannot press a white key."""
+    full_hand: bool = False
+    """In the full action space (``reduced_action_space=False``), also move the joints the
+    paper's reduced hand does without (THJ5, THJ1, LFJ5) and THJ2 below 0. Off, the planner
+    holds them as the reduced hand has them (commanded 0; THJ2 in [0, 0.698] rad) and plays
+    as it does there: every rule here was tuned on that hand, and moving them, open-etude-12
+    (fast) falls from 0.812 to 0.674 and the debug songs from 0.955 to 0.866."""
     unsounded_latch: bool = True
     """Keep the push for the rest of the key's press once given (the key sounds only in the
     last 0.5 degrees of its travel: a finger easing off lets it flicker)."""

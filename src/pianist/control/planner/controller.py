@@ -161,7 +161,7 @@ class IKPlanner(BaseController):
             np.where(C.BLACK_KEY_MASK, C.BLACK_KEY_MAX_ANGLE_RAD, C.WHITE_KEY_MAX_ANGLE_RAD)
             - C.KEY_ACTIVATION_THRESHOLD_RAD
         )
-        self.hands = [Hand(m, hand) for hand in handle.scene.hands]
+        self.hands = [Hand(m, hand, cfg.full_hand) for hand in handle.scene.hands]
         # (T, 10) each finger's FingerState per step, as played (see plan_arrays).
         self.finger_states = np.zeros((goal.num_frames, 2 * FINGERS_PER_HAND), dtype=np.int8)
         _use_postures(m, self.scratch, self.hands, cfg, handle.scene.options)

@@ -22,7 +22,7 @@ from pianist.sim import constants as C
 class Hand(HandPostures, ForearmPlan, FingerTargets, FingerIK):
     """One hand: its indices, posture samples, forearm plan and per-finger IK."""
 
-    def __init__(self, m, hand) -> None:
+    def __init__(self, m, hand, full_hand: bool = False) -> None:
         self.side = hand.side
         self.finger_offset = 0 if hand.side == "right" else FINGERS_PER_HAND
         self.sites = np.asarray(hand.fingertip_sites)
@@ -46,8 +46,12 @@ class Hand(HandPostures, ForearmPlan, FingerTargets, FingerIK):
                 a
                 for a in hand.actuators
                 if m.actuator(a).name.startswith(f"{prefix}A_{finger_prefix}")
+                and (full_hand or not _reduced_away(m.actuator(a).name))
             ]
-            self.fingers.append(Finger(m, acts, int(self.sites[i])))
+            finger = Finger(m, acts, int(self.sites[i]))
+            if not full_hand:
+                _narrow_to_reduced(finger)
+            self.fingers.append(finger)
         for a in hand.actuators:
             if m.actuator(a).name.startswith(f"{prefix}A_WR"):
                 self.wrist.append((int(a), _actuated_qpos(m, a)))
@@ -65,3 +69,19 @@ class Hand(HandPostures, ForearmPlan, FingerTargets, FingerIK):
         # Execution settings of this hand alone (IKPlanner.set_hand_settings); None: the
         # planner's config.
         self.settings: PlannerConfig | None = None
+
+
+def _reduced_away(actuator_name: str) -> bool:
+    """Whether an actuator drives a joint the paper's reduced hand does without (THJ5, THJ1,
+    LFJ5): present only in the full action space. The planner leaves its command at 0, where
+    the reduced hand has the joint fixed."""
+    return actuator_name.endswith(tuple(f"A_{joint}" for joint in C.REDUCED_REMOVED_JOINTS))
+
+
+def _narrow_to_reduced(finger: Finger) -> None:
+    """Limit THJ2's command to the reduced hand's range (a no-op where it already is)."""
+    for j, name in enumerate(finger.names):
+        if name.endswith("A_THJ2"):
+            low, high = C.REDUCED_THJ2_RANGE_RAD
+            finger.low[j] = max(finger.low[j], low)
+            finger.high[j] = min(finger.high[j], high)
