@@ -114,10 +114,21 @@ def test_in_the_full_action_space_the_joints_of_the_reduced_hand_alone_are_moved
     assert len(held) == 6 and len(thj2) == 2
     episode = run_episode(env, IKPlanner(), seed=0)
     actions = np.asarray(episode.actions)[:, :-1]
-    ctrl = action_to_ctrl(actions, env.unwrapped.model.actuator_ctrlrange)
+    ctrlrange = env.unwrapped.model.actuator_ctrlrange
+    ctrl = action_to_ctrl(actions, ctrlrange)
     assert np.allclose(ctrl[:, held], 0.0, atol=1e-6)
     assert ctrl[:, thj2].min() >= -1e-6 and ctrl[:, thj2].max() > 0.1  # the thumb still moves
     assert episode.metrics()["f1"] >= 0.94
+    # Whatever else was commanded there (a residual policy's correction, say), the
+    # planner's next command is 0 again.
+    planner = IKPlanner()
+    env.reset(seed=0)
+    planner.reset(env, seed=0)
+    for _ in range(3):
+        action = planner.act(None)
+        assert np.allclose(action_to_ctrl(action[:-1], ctrlrange)[held], 0.0, atol=1e-6)
+        action[held] = 0.5
+        env.step(action)
     # Asked to move them too, the planner does.
     moving = run_episode(env, IKPlanner(PlannerConfig(full_hand=True)), seed=0)
     assert np.ptp(np.asarray(moving.actions)[:, held], axis=0).max() > 0.1

@@ -52,6 +52,12 @@ class Hand(HandPostures, ForearmPlan, FingerTargets, FingerIK):
             if not full_hand:
                 _narrow_to_reduced(finger)
             self.fingers.append(finger)
+        # Actuators of joints the reduced hand does without, commanded 0 every step (in the
+        # full action space, unless ``full_hand``).
+        self.held_actuators = np.array(
+            [a for a in hand.actuators if not full_hand and _reduced_away(m.actuator(a).name)],
+            dtype=int,
+        )
         for a in hand.actuators:
             if m.actuator(a).name.startswith(f"{prefix}A_WR"):
                 self.wrist.append((int(a), _actuated_qpos(m, a)))
@@ -73,7 +79,7 @@ class Hand(HandPostures, ForearmPlan, FingerTargets, FingerIK):
 
 def _reduced_away(actuator_name: str) -> bool:
     """Whether an actuator drives a joint the paper's reduced hand does without (THJ5, THJ1,
-    LFJ5): present only in the full action space. The planner leaves its command at 0, where
+    LFJ5): present only in the full action space. The planner commands it to 0, where
     the reduced hand has the joint fixed."""
     return actuator_name.endswith(tuple(f"A_{joint}" for joint in C.REDUCED_REMOVED_JOINTS))
 

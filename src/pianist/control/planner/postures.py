@@ -108,6 +108,7 @@ class HandPostures:
     tx_qpos: int
     tz_qpos: int | None
     fingers: list[Finger]
+    held_actuators: np.ndarray
     wrist: list[tuple[int, np.ndarray]]
     # Set here.
     wrist_bent_up: float
@@ -179,6 +180,11 @@ class HandPostures:
             data.qpos[self.tz_qpos] = cfg.hand_height_m
 
     def set_wrist(self, data, ctrl: np.ndarray | None, cfg: PlannerConfig) -> None:
+        """Put the wrist at its pose in ``data`` (the fingers are solved for it) and, given
+        ``ctrl`` (nu,), command it there (with feedback on how far it is off) and the joints
+        the reduced hand does without to 0."""
+        if ctrl is not None:
+            ctrl[self.held_actuators] = 0.0
         pose = cfg.wrist_pose if self.tz_qpos is not None else cfg.wrist_pose_without_tz
         self.wrist_bent_up = 0.0
         for i, ((actuator, qpos), angle, gain) in enumerate(
