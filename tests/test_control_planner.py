@@ -759,9 +759,10 @@ def _reference_ik(hand, m, scratch, targets, active, cfg):
 def test_the_fingers_solved_together_match_each_finger_solved_alone():
     # The IK pads the five fingers to one width and solves them in one batch; every finger
     # must end where the one-at-a-time solve puts it, for any subset of active fingers.
-    # The full action space: the thumb has five actuators, the little finger four.
+    # The full action space, its joints all moved: the thumb has five actuators, the little
+    # finger four.
     env = PianoEnv("c-major-scale-both", physics="fast", **ENV_OPTIONS, reduced_action_space=False)
-    planner = IKPlanner()
+    planner = IKPlanner(PlannerConfig(full_hand=True))
     env.reset(seed=0)
     planner.reset(env, seed=0)
     m, scratch, cfg = env.model, planner.scratch, planner.config
