@@ -10,7 +10,8 @@ Three modes:
   every ``--eval-interval`` steps; the run directory keeps the log. Run several in the
   background and compare them with ``report``.
 - ``report``: F1 against wall-clock time from run directories (the last evaluation by each
-  mark, and the best one kept by then in ``run/best``), steps/s and updates/s; then the
+  mark, and the best one kept by then in ``run/best``; a practice run's passes, from
+  ``pianist train SONG``, beside them), steps/s and updates/s; then the
   planner (residual runs), the final policy and the best kept policy evaluated again: one
   deterministic episode each, and the mean F1 over ``--episodes`` episodes with Gaussian
   action noise of std ``--noise`` (a single episode's F1 is chaotic: see ``NoisyController``).
@@ -230,6 +231,9 @@ def report(
     for run in run_dirs:
         config = json.loads((Path(run) / "config.json").read_text())
         lines = [json.loads(x) for x in (Path(run) / "log.jsonl").read_text().splitlines() if x]
+        if config.get("kind") == "practice":
+            rows.append(practice_row(run, config, lines, marks_min, noise, episodes))
+            continue
         evals = [r for r in lines if r["kind"] == "eval"]
         train_rows = [r for r in lines if r["kind"] == "train"]
         last = train_rows[-1] if train_rows else {"step": 0, "updates": 0, "wall_s": 0}
@@ -313,6 +317,61 @@ def report(
     return rows
 
 
+def practice_row(
+    run: str, config: dict, passes: list[dict], marks_min: list[float], noise: float, episodes: int
+) -> dict:
+    """A practice run's row (``pianist train SONG``, no network) in the shape of the others:
+    its passes as the curve (wall seconds, environment steps simulated so far on both
+    workers, look-aheads included, and the pass's F1, which is its table's: the physics is
+    deterministic), the best table kept by each mark, and the planner and the best table
+    evaluated again in the physics it was practised in (a table plays no other). "updates"
+    counts the passes."""
+    from pianist.agents.practice import CorrectedPlanner
+    from pianist.control.planner import IKPlanner
+    from pianist.eval import run_episode
+    from pianist.eval.session import make_env
+
+    steps_so_far = np.cumsum([int(r.get("env_steps", 0)) for r in passes])
+    curve = [(r["seconds"], int(n), r["f1"]) for r, n in zip(passes, steps_so_far, strict=True)]
+    best_by = np.maximum.accumulate([f for _, _, f in curve])
+    wall, steps = curve[-1][0], curve[-1][1]
+    row: dict = {
+        "run": run,
+        "preset": "practice",
+        "song": config["song"],
+        "seed": config.get("seed"),
+        "steps": steps,
+        "updates": len(passes) - 1,
+        "wall_s": wall,
+        "steps_per_s": steps / wall if wall else 0.0,
+        "updates_per_s": (len(passes) - 1) / wall if wall else 0.0,
+        "best_f1": float(best_by[-1]),
+        "final_f1": float(best_by[-1]),  # what the run keeps and plays: its best table
+        "curve": curve,
+        "trained_physics": config["physics"],
+    }
+    for m in marks_min:
+        reached = wall >= 0.95 * m * 60
+        before = [b for (w, _, _), b in zip(curve, best_by, strict=True) if w <= m * 60]
+        value = float(before[-1]) if reached and before else float("nan")
+        row[f"f1_at_{m:g}min"] = row[f"best_f1_by_{m:g}min"] = value
+    practised = CorrectedPlanner.load(run)
+    env = make_env(config["song"], practised)
+    for name, controller in (("planner", IKPlanner()), ("best", practised)):
+        row[f"det_{name}_f1"] = run_episode(env, controller, seed=0).metrics()["f1"]
+        if episodes > 0:
+            noisy = NoisyController(controller, noise)
+            f1 = [run_episode(env, noisy, seed=i).metrics()["f1"] for i in range(episodes)]
+            row[f"noisy_{name}_f1"] = float(np.mean(f1))
+            row[f"noisy_{name}_f1_all"] = [float(x) for x in f1]
+    row["det_final_f1"] = row["det_best_f1"]
+    row["planner_f1_at_start"] = curve[0][2]  # pass 0: the planner alone, its plan chosen
+    row["planner_f1"] = row["det_planner_f1"]
+    if episodes > 0:
+        row["noisy_final_f1"] = row["noisy_best_f1"]
+    return row
+
+
 def planner_f1(config: dict) -> float:
     from pianist.agents.config import TrainConfig
     from pianist.agents.envs import make_agent_env
@@ -361,7 +420,7 @@ def evaluate_policies(
 
 def plot_curves(rows: list[dict], path: str) -> None:
     """F1 against wall-clock minutes, one line per run (preset and song), the planner's F1 as a
-    dashed line of the same colour for residual runs; written to ``path`` (PNG)."""
+    dashed line of the same colour for residual and practice runs; written to ``path`` (PNG)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -387,7 +446,7 @@ def plot_curves(rows: list[dict], path: str) -> None:
     ax.set_ylim(0, 1)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8, loc="lower right")
-    ax.set_title("Learning curves (dashed: the planner alone, for residual runs)")
+    ax.set_title("Learning curves (dashed: the planner alone, under residual and practice runs)")
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
