@@ -595,6 +595,30 @@ def test_a_restored_snapshot_replays_the_steps_exactly(physics):
     assert env.step_index == fork_env.step_index == 30
 
 
+def test_a_snapshot_that_reuses_an_earlier_ones_copy_restores_as_a_new_one():
+    # snapshot(reuse=old) overwrites old's simulator copy instead of allocating one; the new
+    # state restores exactly as a fresh snapshot does (a fork's spent snapshot too), and one
+    # of another environment is not reused.
+    env = PianoEnv("twinkle-twinkle", physics="fast")
+    env.reset(seed=0)
+    rng = np.random.default_rng(2)
+    actions = rng.uniform(-1, 1, (16, env.action_space.shape[0])).astype(np.float32)
+    spent = env.fork().snapshot()
+    for action in actions[:8]:
+        env.step(action)
+    fresh, reused = env.snapshot(), env.snapshot(reuse=spent)
+    assert reused.data is spent.data and fresh.data is not spent.data
+    runs = []
+    for state in (fresh, reused):
+        env.restore(state)
+        runs.append([env.step(action)[4]["active_keys"].tolist() for action in actions[8:]])
+        runs[-1].append(env.data.qpos.tolist())
+    assert runs[0] == runs[1]
+    bigger = PianoEnv("twinkle-twinkle", physics="fast", forearm_dofs=("tx", "ty", "tz"))
+    bigger.reset(seed=0)
+    assert env.snapshot(reuse=bigger.snapshot()).data.qpos.shape == env.data.qpos.shape
+
+
 def test_a_fork_is_independent_of_its_source():
     env = PianoEnv("twinkle-twinkle", physics="fast")
     env.reset(seed=0)

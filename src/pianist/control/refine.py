@@ -194,6 +194,7 @@ class Refiner(BaseController):
         self._steps = self._refined = 0
         self._previous: np.ndarray | None = None
         self._seconds = 0.0
+        self._state: EnvState | None = None
         # Steps simulated on the fork, all told (not rewound by ``set_memory``: a search's
         # look-aheads of the refiner cost them too).
         self.simulated_steps = 0
@@ -206,7 +207,8 @@ class Refiner(BaseController):
             return proposal
         start = time.perf_counter()
         memory = self.planner.memory()
-        state = self.handle.snapshot()
+        # The last step's snapshot is done with: its simulator copy is reused.
+        state = self._state = self.handle.snapshot(self._state)
         offsets = np.zeros((o.candidates + 1, proposal.shape[0]), dtype=np.float32)
         offsets[1:, self.dims] = self.rng.normal(0.0, o.sigma, (o.candidates, self.dims.size))
         if o.arm_sigma > 0:
@@ -316,7 +318,7 @@ class Refiner(BaseController):
             self.ahead.restore(last.end)
             self.planner.attach(self.ahead_handle)
             self.planner.set_memory(last.memory)
-            more = self._roll(None, None, last.step + len(last.actions), 1, True)
+            more = self._roll(None, None, last.step + len(last.actions), 1, True, last.end)
             trace = _Trace(
                 step=state.step,
                 costs=last.costs[1:] + more.costs,
@@ -330,7 +332,8 @@ class Refiner(BaseController):
             self.ahead.restore(state)
             self.planner.attach(self.ahead_handle)
             self.planner.set_memory(memory)
-            trace = self._roll(proposal, None, state.step, o.horizon_steps, True)
+            spare = last.end if last is not None else None  # the last look-ahead is left
+            trace = self._roll(proposal, None, state.step, o.horizon_steps, True, spare)
         self._trace = trace
         return trace.total()
 
@@ -341,12 +344,14 @@ class Refiner(BaseController):
         start: int,
         steps: int,
         keep: bool,
+        spare: EnvState | None = None,
     ) -> _Trace:
         """Step the fork (where it is, the planner attached to it) ``steps`` steps from episode
         step ``start``: the action ``first`` at the first (None: the planner's), then the
         planner's, each plus ``offset`` (None: none). Returns each step's cost; with ``keep``
         also what :meth:`_unperturbed` continues from (``end`` is left None if the episode
-        or the song ended within the steps)."""
+        or the song ended within the steps; ``spare``: a snapshot done with, whose simulator
+        copy ``end`` takes over)."""
         o = self.options
         goal = self.handle.goal.keys
         fingers = self.planner.fingers
@@ -387,7 +392,7 @@ class Refiner(BaseController):
                 complete = False
                 break
         if keep and complete:
-            trace.end = self.ahead.snapshot()
+            trace.end = self.ahead.snapshot(spare)
             trace.memory = self.planner.memory()
         return trace
 

@@ -103,9 +103,10 @@ class ControlHandle:
         low, high = self._env.model.actuator_ctrlrange.T
         return np.clip(2.0 * (np.asarray(ctrl) - low) / (high - low) - 1.0, -1.0, 1.0)
 
-    def snapshot(self) -> EnvState:
-        """The environment's episode state now (a copy; see :meth:`PianoEnv.snapshot`)."""
-        return self._env.snapshot()
+    def snapshot(self, reuse: EnvState | None = None) -> EnvState:
+        """The environment's episode state now (a copy; see :meth:`PianoEnv.snapshot`, whose
+        ``reuse`` takes over an earlier snapshot the caller is done with)."""
+        return self._env.snapshot(reuse)
 
     def play_tape(self, tape: StepTape) -> bool:
         """Let the environment play back steps recorded (:class:`~pianist.env.tape.StepTape`)
