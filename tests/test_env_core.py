@@ -616,7 +616,9 @@ def test_a_snapshot_that_reuses_an_earlier_ones_copy_restores_as_a_new_one():
     assert runs[0] == runs[1]
     bigger = PianoEnv("twinkle-twinkle", physics="fast", forearm_dofs=("tx", "ty", "tz"))
     bigger.reset(seed=0)
-    assert env.snapshot(reuse=bigger.snapshot()).data.qpos.shape == env.data.qpos.shape
+    foreign = bigger.snapshot()
+    own = env.snapshot(reuse=foreign)
+    assert own.data is not foreign.data and own.data.qpos.shape == env.data.qpos.shape
 
 
 def test_a_fork_is_independent_of_its_source():
