@@ -169,6 +169,26 @@ def test_midi_tracks_named_for_hands(tmp_path: Path) -> None:
     assert load_song(path, fingering="none").fingering_coverage == 0.0
 
 
+def test_a_drum_track_is_neither_a_hand_nor_notes(tmp_path: Path) -> None:
+    # Two unnamed tracks a register apart are the hands; a third, of drums on the General
+    # MIDI percussion channel, would otherwise make three groups and no hands at all.
+    path = tmp_path / "band.mid"
+    _two_track_midi(path, ("Piano", "Piano"))
+    midi = mido.MidiFile(path)
+    drums = mido.MidiTrack([mido.MetaMessage("track_name", name="Drums")])
+    for _ in range(8):  # a kick drum every half beat
+        drums.append(mido.Message("note_on", note=36, velocity=100, channel=9, time=0))
+        drums.append(mido.Message("note_off", note=36, velocity=0, channel=9, time=240))
+    midi.tracks.append(drums)
+    midi.save(path)
+    song = read_midi(path)
+    assert sorted(n.pitch for n in song.notes) == [48, 50, 52, 60, 62, 72, 74, 76]
+    hints = midi_hand_hints(path, song)
+    assert hints is not None
+    by_pitch = dict(zip((n.pitch for n in song.notes), hints, strict=True))
+    assert by_pitch[72] == by_pitch[60] == "right" and by_pitch[48] == by_pitch[62] == "left"
+
+
 @pytest.mark.parametrize(
     ("right", "left"),
     [

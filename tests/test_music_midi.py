@@ -143,6 +143,22 @@ def test_same_pitch_on_two_channels(tmp_path: Path) -> None:
     assert _spans(song) == [(60, 0.0, 0.5), (60, 0.5, 1.5)]
 
 
+def test_drum_hits_on_the_percussion_channel_are_left_out(tmp_path: Path) -> None:
+    # General MIDI plays drums on channel 10 (9 from 0): note 38 there is a snare, not a D2.
+    piano = _track((0, _on(60)), (480, _off(60)))
+    drums = _track(
+        (0, _on(36, channel=9)),
+        (120, _off(36, channel=9)),
+        (240, _on(38, channel=9)),
+        (1920, _off(38, channel=9)),
+    )
+    song = read_midi(_save(tmp_path / "band.mid", piano, drums))
+    assert _spans(song) == [(60, 0.0, 0.5)]
+    only = _save(tmp_path / "drums.mid", drums)
+    message = _error_message(only)
+    assert "no notes" in message and "2 drum hit(s)" in message and "channel 10" in message
+
+
 def test_open_note_closes_at_end_and_zero_length_dropped(tmp_path: Path) -> None:
     track = _track(
         (0, _on(60)),

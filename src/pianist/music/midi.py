@@ -12,6 +12,8 @@ Reading conventions (a caller should know these):
   waiting for its note-off (if that note was already cut short by a re-strike, the note-off is
   simply consumed). Notes still open at the end of the file close at the end time.
 - Notes of zero length (note-off at the note-on's tick) are dropped.
+- Notes on MIDI channel 10 (``PERCUSSION_CHANNEL``, 9 counted from 0) are left out: General
+  MIDI plays drums there, and a drum hit's note number names an instrument, not a pitch.
 - Sustain comes from CC64 on any channel: value >= 64 is pedal down, < 64 pedal up.
 - Hand and finger are never read from MIDI: every note has ``hand=None, finger=None``.
 - Absurd files are refused: any tempo below 1 or above 1000 BPM, or a timeline past one hour.
@@ -33,6 +35,8 @@ from pianist.music.fileio import require_file
 from pianist.music.notes import Note, Song
 from pianist.music.pitch import HIGHEST_PITCH, LOWEST_PITCH
 
+#: The General MIDI percussion channel (channel 10, counted from 0): its notes are drums.
+PERCUSSION_CHANNEL = 9
 #: Longest timeline accepted by :func:`read_midi`, seconds.
 MAX_DURATION_S = 3600.0
 #: Tempo limits accepted by :func:`read_midi`, beats per minute.
@@ -94,8 +98,8 @@ def read_midi(path: str | os.PathLike[str], *, out_of_range: OutOfRange = "error
             21..108; "drop" silently leaves such notes out.
 
     Raises:
-        MidiFileError: missing, directory, empty, not MIDI, truncated or corrupt file; no notes;
-            tempo outside 1..1000 BPM; timeline longer than one hour.
+        MidiFileError: missing, directory, empty, not MIDI, truncated or corrupt file; no notes
+            (drums alone included); tempo outside 1..1000 BPM; timeline longer than one hour.
         OutOfRangeError: notes outside the piano's keys with ``out_of_range="error"``.
     """
     if out_of_range not in ("error", "drop"):
@@ -113,6 +117,7 @@ def read_midi(path: str | os.PathLike[str], *, out_of_range: OutOfRange = "error
     finished: list[tuple[int, float, float, int]] = []
     pedal_since: float | None = None
     sustain: list[tuple[float, float]] = []
+    drum_hits = 0
 
     def close(note: _OpenNote, end_s: float) -> None:
         finished.append((note.pitch, note.onset_s, end_s, note.velocity))
@@ -139,6 +144,8 @@ def read_midi(path: str | os.PathLike[str], *, out_of_range: OutOfRange = "error
                     f"(accepted {MIN_BPM:g}..{MAX_BPM:g} BPM)"
                 )
             tempo, segment_tick, segment_s = msg.tempo, tick, now
+        elif kind in ("note_on", "note_off") and msg.channel == PERCUSSION_CHANNEL:
+            drum_hits += kind == "note_on" and msg.velocity > 0
         elif kind == "note_on" and msg.velocity > 0:
             queue = waiting.setdefault(msg.note, deque())
             for note in queue:
@@ -178,7 +185,13 @@ def read_midi(path: str | os.PathLike[str], *, out_of_range: OutOfRange = "error
     ]
     if not notes:
         where = " in the piano's range" if outside else ""
-        raise MidiFileError(f"{path}: no notes{where}")
+        drums = (
+            f" (only {drum_hits} drum hit(s) on the percussion channel, MIDI channel 10, "
+            "which are not pitches)"
+            if drum_hits
+            else ""
+        )
+        raise MidiFileError(f"{path}: no notes{where}{drums}")
     return Song(
         notes=tuple(notes),
         sustain=tuple((s, e) for s, e in sustain if e > s),

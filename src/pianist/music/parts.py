@@ -27,7 +27,7 @@ from collections import defaultdict
 from dataclasses import dataclass
 from pathlib import Path
 
-from pianist.music.midi import _load
+from pianist.music.midi import PERCUSSION_CHANNEL, _load
 from pianist.music.notes import LEFT, RIGHT, Song
 
 #: Smallest difference of average pitch (semitones) for two unnamed parts to count as hands.
@@ -76,8 +76,8 @@ def _note_ons(path: Path) -> tuple[list[tuple[int, float, int, int]], dict[int, 
             elif msg.type in ("track_name", "instrument_name") and msg.name.strip():
                 kind = track_names if msg.type == "track_name" else instrument_names
                 kind.append(msg.name.strip())
-            elif msg.type == "note_on" and msg.velocity > 0:
-                events.append((tick, msg.note, track_index, msg.channel))
+            elif msg.type == "note_on" and msg.velocity > 0 and msg.channel != PERCUSSION_CHANNEL:
+                events.append((tick, msg.note, track_index, msg.channel))  # drums: not notes
         names[track_index] = track_names + instrument_names
     tempos.sort(key=lambda t: t[0])
     # Piecewise-linear tick -> seconds map, the same arithmetic as read_midi.
