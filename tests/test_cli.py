@@ -139,6 +139,26 @@ def test_out_of_range_notes_are_refused(tmp_path):
     assert len(result.stderr.strip().splitlines()) == 1
 
 
+def test_play_leaves_out_of_range_notes_out_when_told(tmp_path, capsys):
+    path = tmp_path / "piccolo.mid"
+    track = mido.MidiTrack()
+    for pitch in (60, 64, 67, 110):  # MIDI 110 is above the piano's top C (108)
+        track += [
+            mido.Message("note_on", note=pitch, velocity=80, time=0),
+            mido.Message("note_off", note=pitch, velocity=0, time=240),
+        ]
+    midi = mido.MidiFile()
+    midi.tracks.append(track)
+    midi.save(path)
+    args = ["play", str(path), "--no-audio", "--out", str(tmp_path / "o")]
+    assert main(args) == 1
+    assert "--out-of-range drop" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
+    assert main([*args, "--out-of-range", "drop"]) == 0
+    metrics = json.loads((tmp_path / "o" / "metrics.json").read_text())
+    assert metrics["f1"] > 0.5  # the three notes in range, one after the other
+
+
 def test_unwritable_output_directory(tmp_path):
     blocker = tmp_path / "file"
     blocker.write_text("x")

@@ -49,6 +49,9 @@ class Play:
     this robot hand, keeping the song's hands (a human fingering puts the thumb on black keys,
     which the Shadow thumb cannot press); none: no labels (the fingering reward then matches
     fingertips to keys; the planner needs fingers)."""
+    out_of_range: Literal["error", "drop"] = "error"
+    """A file's notes outside the piano's 88 keys: refuse the file (error) or leave them out
+    (drop)."""
     out: Path = Path("out")
     """Output directory: created with the results once they are complete, or replaced whole
     if it holds an earlier run's results (a folder holding other files is refused)."""
@@ -115,7 +118,7 @@ class Play:
                 raise CliError(f"--refine refines the planner, not --controller {spec}")
             else:
                 spec = "refine" if spec == "planner" else spec
-        song = load_song(self.song, fingering=self.fingering)
+        song = load_song(self.song, out_of_range=self.out_of_range, fingering=self.fingering)
         planner = spec == "planner" or spec.split(":")[0] in ("refine", "search")
         if planner and song.fingering_coverage < 1.0:
             missing = sum(n.finger is None for n in song.notes)

@@ -26,6 +26,8 @@ class View:
     play`)."""
     fingering: Literal["auto", "file", "robot", "none"] = "auto"
     """How the song is fingered (as for `pianist play`)."""
+    out_of_range: Literal["error", "drop"] = "error"
+    """A file's notes outside the piano's 88 keys: refuse the file, or leave them out."""
     physics: Annotated[
         Literal["faithful", "fast"] | None,
         tyro.conf.arg(help_behavior_hint="(default: faithful; a trained policy: its own)"),
@@ -50,7 +52,7 @@ class View:
         from pianist.music import load_song
         from pianist.music.transforms import window
 
-        song = load_song(self.song, fingering=self.fingering)
+        song = load_song(self.song, out_of_range=self.out_of_range, fingering=self.fingering)
         if self.seconds is not None and self.seconds < song.duration_s:
             song = window(song, 0.0, self.seconds)
         controller = _make_controller(self.controller)

@@ -176,7 +176,7 @@ def read_midi(path: str | os.PathLike[str], *, out_of_range: OutOfRange = "error
         raise OutOfRangeError(
             f"{path}: {len(outside)} note(s) outside the piano's range MIDI "
             f"{LOWEST_PITCH}..{HIGHEST_PITCH} (pitches {min(pitches)}..{max(pitches)}); "
-            "use out_of_range='drop' to leave them out"
+            "leave them out with out_of_range='drop' (pianist play --out-of-range drop)"
         )
     notes = [
         Note(pitch, onset, offset, velocity)

@@ -108,7 +108,7 @@ def read_pig(
         raise OutOfRangeError(
             f"{path}: {len(outside)} note(s) outside the piano's range MIDI "
             f"{LOWEST_PITCH}..{HIGHEST_PITCH} (pitches {min(outside)}..{max(outside)}); "
-            "use out_of_range='drop' to leave them out"
+            "leave them out with out_of_range='drop' (pianist play --out-of-range drop)"
         )
     if not notes:
         raise PigFormatError(f"{path}: no notes")
