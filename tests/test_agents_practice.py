@@ -191,6 +191,7 @@ def test_train_practice_then_eval_and_play_it(tmp_path, capsys):
     [
         (["--steps", "100"], "--steps does not apply"),
         (["--passes", "0"], "--passes must be at least 1"),
+        (["--eval-physics", "fast"], "--eval-physics applies to soft actor-critic presets"),
     ],
 )
 def test_train_practice_refuses_bad_options(tmp_path, capsys, extra, message):

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from pianist.agents import PolicyController, get_preset, rundir, train
+from pianist.agents import checkpoint as ckpt
 from pianist.agents.checkpoint import latest_checkpoint
 from pianist.agents.envs import TARGET_SCALE, Featurizer, make_agent_env
 from pianist.agents.replay import ReplayBuffer
@@ -79,6 +80,29 @@ def test_a_trained_policy_acts_the_same_after_loading(run_dir):
     logged = _rows(run_dir, "eval")[-1]
     assert episode.metrics()["f1"] == pytest.approx(logged["f1"])
     assert episode.metrics()["return"] == pytest.approx(logged["return"])
+
+
+def test_evaluations_choose_the_kept_policy_in_the_evaluation_physics(run_dir):
+    # The fast preset trains on fast physics and evaluates on the faithful one, where pieces
+    # are judged: the logged F1s, the best policy kept, and `pianist eval`'s default are all
+    # in the faithful physics; asked for, the policy still plays on fast.
+    assert TINY.task.physics == "fast" and TINY.eval_physics == "faithful"
+    kept = PolicyController(run_dir / "best")
+    env = kept.make_env(SONG)
+    assert env.unwrapped.config.scene.physics == "faithful"
+    best = ckpt.best_evaluation(run_dir)
+    assert best is not None and kept.step == best["step"]
+    # The return tells the two physics apart where a barely trained policy's F1 does not.
+    faithful = run_episode(env, kept, seed=0).metrics()
+    assert (faithful["f1"], faithful["return"]) == pytest.approx((best["f1"], best["return"]))
+    on_fast = PolicyController(run_dir / "best", physics="fast")
+    fast_env = on_fast.make_env(SONG)
+    assert fast_env.unwrapped.config.scene.physics == "fast"
+    assert run_episode(fast_env, on_fast, seed=0).metrics()["return"] != pytest.approx(
+        best["return"]
+    )
+    with pytest.raises(ValueError, match="eval_physics"):
+        dataclasses.replace(TINY, eval_physics="slow")
 
 
 def test_a_policy_needs_its_own_environment(run_dir):

@@ -152,6 +152,11 @@ class TrainConfig:
     on the other core (the acting policy lags one block behind)."""
     eval_interval: int = 10_000
     """Evaluate one deterministic episode every this many steps (and at the end)."""
+    eval_physics: Literal["faithful", "fast"] | None = None
+    """The physics preset of those evaluations, which choose the policy kept in ``best/``
+    (and that ``pianist eval`` plays in unless told); None: the one trained in. A policy
+    trained on the fast preset and judged on the faithful one is best chosen there: the best
+    fast-physics evaluation of a from-scratch run can transfer worse than a later policy."""
     checkpoint_interval: int = 10_000
     """Checkpoint at the first episode end after this many steps since the last one."""
     windows: bool = False
@@ -183,6 +188,10 @@ class TrainConfig:
                 raise ValueError(f"{name} must be >= 1, not {getattr(self, name)}")
         if self.seed_steps < 0:
             raise ValueError(f"seed_steps must be >= 0, not {self.seed_steps}")
+        if self.eval_physics not in (None, "faithful", "fast"):
+            raise ValueError(
+                f"eval_physics must be 'faithful', 'fast' or None, not {self.eval_physics!r}"
+            )
         if self.seed_policy not in ("uniform", "actor"):
             raise ValueError(f"seed_policy must be 'uniform' or 'actor', not {self.seed_policy!r}")
         if not (self.window_s > 0 and self.window_stride_s > 0 and self.window_power >= 0):
@@ -196,6 +205,13 @@ class TrainConfig:
 
     def to_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
+
+    @property
+    def eval_task(self) -> TaskConfig:
+        """The task of the evaluations: the training task in :attr:`eval_physics`, if set."""
+        if self.eval_physics is None:
+            return self.task
+        return dataclasses.replace(self.task, physics=self.eval_physics)
 
     @staticmethod
     def from_dict(data: dict[str, Any]) -> TrainConfig:
@@ -226,7 +242,8 @@ DROQ_PAPER = TrainConfig(
 # What learns a piece in the least wall-clock time here (benchmarks/bench_train.py): one hand
 # when the song needs one, the fast physics preset, a compact goal (fingertip-to-target vectors
 # and 2 goal rows instead of 11 x 89 bits), 2 x 256 networks and batches of 128, blocks of 8
-# updates run on the second core while the first one steps the environment.
+# updates run on the second core while the first one steps the environment. Its evaluations,
+# which choose the policy kept, are on the faithful physics, where pieces are judged.
 FAST = TrainConfig(
     preset="fast",
     task=TaskConfig(
@@ -240,6 +257,7 @@ FAST = TrainConfig(
     steps_per_iteration=8,
     pipeline=True,
     eval_interval=5000,
+    eval_physics="faithful",
     checkpoint_interval=20_000,
 )
 

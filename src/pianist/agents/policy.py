@@ -76,9 +76,9 @@ class PolicyController:
     """
 
     def __init__(self, run_dir: str | Path, physics: str | None = None) -> None:
-        """``physics``: play in this physics preset ("faithful" or "fast") instead of the
-        one the policy was trained in, everything else of its task unchanged (to measure
-        how a policy trained on the fast preset transfers to the faithful one)."""
+        """``physics``: play in this physics preset ("faithful" or "fast"), everything else
+        of its task unchanged; None: the one its run evaluated in (``eval_physics``, which
+        chose the kept best policy), else the one it was trained in."""
         from pianist.agents.checkpoint import load_policy
         from pianist.sim.scene import PHYSICS_PRESETS
 
@@ -87,8 +87,8 @@ class PolicyController:
                 f"unknown physics {physics!r}; use one of {', '.join(PHYSICS_PRESETS)}"
             )
         self.run_dir: Path | None = Path(run_dir)
-        self.physics = physics
         self.config, weights, self.step = load_policy(self.run_dir)
+        self.physics = physics or self.config.eval_physics
         a = self.config.agent
         self.actor = NumpyActor(weights, a.activation, a.log_std_min, a.log_std_max)
         self._features: Featurizer | None = None

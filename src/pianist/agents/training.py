@@ -223,7 +223,7 @@ def _new_run(out: Path, song: str, config: TrainConfig, steps: int) -> _Run:
     from pianist.agents.sac import make_agent
 
     env = make_agent_env(song, config.task)
-    eval_env = make_agent_env(song, config.task)
+    eval_env = make_agent_env(song, config.eval_task)
     features = Featurizer(env, config.task)
     rundir.write_run_config(
         out,

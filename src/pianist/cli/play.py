@@ -57,7 +57,9 @@ class Play:
     if it holds an earlier run's results (a folder holding other files is refused)."""
     physics: Annotated[
         Literal["faithful", "fast"] | None,
-        tyro.conf.arg(help_behavior_hint="(default: faithful; a trained policy: its own)"),
+        tyro.conf.arg(
+            help_behavior_hint="(default: faithful; a trained policy: the one its run evaluated in)"
+        ),
     ] = None
     """Physics preset: faithful (the paper's simulation) or fast (cheaper contacts)."""
     seed: int = 0

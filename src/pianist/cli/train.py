@@ -57,6 +57,12 @@ class Train:
         tyro.conf.arg(help_behavior_hint="(practice: default faithful)"),
     ] = None
     """--preset practice: the physics preset practised in (the piece is played in it later)."""
+    eval_physics: Annotated[
+        Literal["faithful", "fast"] | None,
+        tyro.conf.arg(help_behavior_hint="(default: the preset's)"),
+    ] = None
+    """A soft actor-critic run's evaluations, which choose the policy kept in OUT/best, in
+    this physics preset (the fast presets train on fast and evaluate on faithful)."""
     workers: Annotated[int | None, tyro.conf.arg(help_behavior_hint="(practice: default 2)")] = None
     """--preset practice: passes played at once, one per process (2 on two cores)."""
     progress: bool = True
@@ -64,7 +70,7 @@ class Train:
     would write thousands of lines into a pipe or log file)."""
 
     def run(self) -> None:
-        from pianist.agents import PRESETS, train
+        from pianist.agents import PRESETS, get_preset, train
         from pianist.agents.rundir import read_run_config
 
         if self.steps is not None and self.steps < 1:
@@ -73,6 +79,8 @@ class Train:
             raise CliError(f"--minutes must be a positive number, not {self.minutes}")
         budget_s = None if self.minutes is None else 60.0 * self.minutes
         if self._practice():
+            if self.eval_physics is not None:
+                raise CliError("--eval-physics applies to soft actor-critic presets, not practice")
             self._run_practice(budget_s)
             return
         if self.passes is not None or self.physics is not None or self.workers is not None:
@@ -80,6 +88,8 @@ class Train:
         _require_jax()
         show_bar = self.progress and sys.stderr.isatty()
         if self.resume is not None:
+            if self.eval_physics is not None:
+                raise CliError("--eval-physics is part of a run: a resumed run keeps its own")
             steps = (
                 self.steps if self.steps is not None else int(read_run_config(self.resume)["steps"])
             )
@@ -99,9 +109,12 @@ class Train:
             if self.preset not in PRESETS:
                 raise CliError(f"unknown preset {self.preset!r}; choose from {', '.join(PRESETS)}")
             _prepare_dir(self.out)
+            preset: Any = self.preset
+            if self.eval_physics is not None:
+                preset = get_preset(self.preset, eval_physics=self.eval_physics)
             result = train(
                 self.song,
-                self.preset,
+                preset,
                 self.steps if self.steps is not None else 1_000_000,
                 self.out,
                 progress=show_bar,
@@ -197,11 +210,12 @@ class Eval:
     seed: int = 0
     physics: Annotated[
         Literal["faithful", "fast"] | None,
-        tyro.conf.arg(help_behavior_hint="(default: the one it was trained in)"),
+        tyro.conf.arg(help_behavior_hint="(default: the one the run evaluated in)"),
     ] = None
-    """Evaluate in this physics preset instead of the one the policy was trained in (the
-    rest of its task unchanged): how a policy trained on the fast preset plays on the
-    faithful one."""
+    """Evaluate in this physics preset (the rest of its task unchanged): how a policy
+    trained on the fast preset plays on the faithful one. Unless told, the one the run's
+    evaluations chose its best policy in (faithful for the fast presets), else the one it
+    was trained in."""
 
     def run(self) -> None:
         from pianist.agents import PolicyController

@@ -30,7 +30,9 @@ class View:
     """A file's notes outside the piano's 88 keys: refuse the file, or leave them out."""
     physics: Annotated[
         Literal["faithful", "fast"] | None,
-        tyro.conf.arg(help_behavior_hint="(default: faithful; a trained policy: its own)"),
+        tyro.conf.arg(
+            help_behavior_hint="(default: faithful; a trained policy: the one its run evaluated in)"
+        ),
     ] = None
     """Physics preset: faithful (the paper's simulation) or fast (cheaper contacts)."""
     seed: int = 0
