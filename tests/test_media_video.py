@@ -385,7 +385,8 @@ _STAGE_SCRIPT = textwrap.dedent(
     result["background_pixels"] = int(background.sum())
 
     counts = {}
-    for name, kw in {"notes": dict(falling_notes=True), "auto": {}}.items():
+    variants = {"notes": dict(falling_notes=True), "auto": {}, "jagged": dict(antialias=False)}
+    for name, kw in variants.items():
         counts[name] = render_episode(env, ep, f"{out}/{name}.mp4", size=size, fps=10,
                                       progress=False, **kw)
     result["counts"] = counts
@@ -428,6 +429,18 @@ def test_hands_stand_out_from_the_background(stage) -> None:
     # Luminance 0..255: the old stage had dark grey hands (about 55-65) on black (0).
     assert result["background_luminance"] - result["hand_luminance"] > 60, result
     assert result["hand_luminance"] > 70, result  # the hands' shapes are lit, not black
+
+
+def test_a_video_without_antialiasing_is_the_same_picture_with_harder_edges(stage) -> None:
+    out, result = stage
+    assert result["counts"]["jagged"] == result["counts"]["auto"]
+    smooth, jagged = _frames(out / "auto.mp4"), _frames(out / "jagged.mp4")
+    assert smooth.shape == jagged.shape
+    difference = np.abs(smooth - jagged).max(axis=-1)
+    # The same scene from the same camera: most pixels are the same (the encodings of one
+    # picture would be identical), and a few percent, along the edges, differ clearly.
+    assert np.median(difference) <= 1
+    assert 0.002 < np.mean(difference > 40) < 0.1, np.mean(difference > 40)
 
 
 def test_falling_notes_keep_the_frame_size(stage) -> None:

@@ -61,6 +61,8 @@ class MediaOptions:
     """``auto`` (both hands and the keys played, framed on the episode) or a scene camera."""
     falling_notes: bool = False
     """Draw the falling-notes strip under the video's picture."""
+    antialias: bool = True
+    """Smooth the video's edges (off: its picture renders ~2.5x as fast, edges jagged)."""
     fps: float = 30.0
     size: tuple[int, int] = (480, 640)
     """Video frame (height, width) in pixels."""
@@ -215,4 +217,5 @@ def _write_media(
             audio=performance,
             progress=media.progress,
             falling_notes=media.falling_notes,
+            antialias=media.antialias,
         )
