@@ -123,6 +123,34 @@ def test_overlapping_same_pitch_fifo(tmp_path: Path) -> None:
     assert _spans(song) == [(60, 0.0, 0.5), (60, 0.5, 1.5)]
 
 
+def test_a_zero_length_note_written_note_off_first_is_dropped(tmp_path: Path) -> None:
+    # As music21 writes a grace note: at tick 960 the note-off comes before its note-on. Read
+    # in order, that note-on would wait for the note-off at 1920, a note of another voice.
+    track = mido.MidiTrack(
+        [
+            _on(60).copy(time=0),
+            _off(60).copy(time=480),
+            _off(60).copy(time=480),
+            _on(60).copy(time=0),
+            _on(60).copy(time=480),
+            _off(60).copy(time=480),
+        ]
+    )
+    song = read_midi(_save(tmp_path / "grace.mid", track, midi_type=0))
+    assert _spans(song) == [(60, 0.0, 0.5), (60, 1.5, 2.0)]
+    # A stray note-off at another tick, or on another channel, leaves a note-on alone.
+    track = _track(
+        (0, _off(60)),
+        (240, _on(60)),
+        (480, _off(60)),
+        (720, _off(60, channel=1)),
+        (720, _on(60, channel=2)),
+        (960, _off(60, channel=2)),
+    )
+    song = read_midi(_save(tmp_path / "stray.mid", track, midi_type=0))
+    assert _spans(song) == [(60, 0.25, 0.5), (60, 0.75, 1.0)]
+
+
 def test_restrike_with_note_on_before_note_off_at_same_tick(tmp_path: Path) -> None:
     track = mido.MidiTrack(
         [

@@ -11,7 +11,10 @@ Reading conventions (a caller should know these):
   Note-offs are matched first-in-first-out: each closes the oldest note-on of that pitch still
   waiting for its note-off (if that note was already cut short by a re-strike, the note-off is
   simply consumed). Notes still open at the end of the file close at the end time.
-- Notes of zero length (note-off at the note-on's tick) are dropped.
+- Notes of zero length (note-off at the note-on's tick) are dropped, also when written
+  note-off first (a note-off that closes nothing, then at the same tick a note-on of that
+  pitch on that channel: music21 writes grace notes so). Read in file order, that note-on
+  would wait for the pitch's next note-off, however far away.
 - Notes on MIDI channel 10 (``PERCUSSION_CHANNEL``, 9 counted from 0) are left out: General
   MIDI plays drums there, and a drum hit's note number names an instrument, not a pitch.
 - Sustain comes from CC64 on any channel: value >= 64 is pedal down, < 64 pedal up.
@@ -118,6 +121,9 @@ def read_midi(path: str | os.PathLike[str], *, out_of_range: OutOfRange = "error
     pedal_since: float | None = None
     sustain: list[tuple[float, float]] = []
     drum_hits = 0
+    # (channel, pitch) of note-offs that closed nothing at the current tick: a note-on that
+    # follows one at the same tick is a zero-length note written note-off first.
+    stray_offs: set[tuple[int, int]] = set()
 
     def close(note: _OpenNote, end_s: float) -> None:
         finished.append((note.pitch, note.onset_s, end_s, note.velocity))
@@ -128,6 +134,7 @@ def read_midi(path: str | os.PathLike[str], *, out_of_range: OutOfRange = "error
         raise MidiFileError(f"{path}: corrupt MIDI file ({one_line(exc)})") from exc
     for msg in merged:
         if msg.time:
+            stray_offs.clear()
             tick += msg.time
             now = segment_s + (tick - segment_tick) * tempo / (1_000_000 * tpb)
             if now > MAX_DURATION_S:
@@ -147,6 +154,9 @@ def read_midi(path: str | os.PathLike[str], *, out_of_range: OutOfRange = "error
         elif kind in ("note_on", "note_off") and msg.channel == PERCUSSION_CHANNEL:
             drum_hits += kind == "note_on" and msg.velocity > 0
         elif kind == "note_on" and msg.velocity > 0:
+            if (msg.channel, msg.note) in stray_offs:
+                stray_offs.discard((msg.channel, msg.note))
+                continue  # a zero-length note, its note-off written first
             queue = waiting.setdefault(msg.note, deque())
             for note in queue:
                 if note.end_s is None:  # re-strike: the key must come up and go down again
@@ -157,6 +167,8 @@ def read_midi(path: str | os.PathLike[str], *, out_of_range: OutOfRange = "error
             if pending:
                 note = pending.popleft()
                 close(note, now if note.end_s is None else note.end_s)
+            else:
+                stray_offs.add((msg.channel, msg.note))
         elif kind == "control_change" and msg.control == _SUSTAIN_CC:
             if msg.value >= 64 and pedal_since is None:
                 pedal_since = now
