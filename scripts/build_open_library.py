@@ -34,6 +34,7 @@ from pianist.music import (
     song_stats,
     write_pig,
 )
+from pianist.music.musicxml import RawNote, merge_voices, seconds_of_offsets
 from pianist.music.open_library import OPEN_SUITE, PROVENANCE_FILE
 
 OUT_DIR = Path(__file__).resolve().parents[1] / "src" / "pianist" / "music" / "data" / "open"
@@ -193,28 +194,6 @@ PIECES = (
 )
 
 
-def _seconds_map(score, quarter_bpm: float | None):
-    """Quarter-length offset -> seconds, from the score's metronome marks (or a fixed tempo)."""
-    if quarter_bpm is not None:
-        return lambda ql: float(ql) * 60.0 / quarter_bpm
-    bounds = [
-        (float(start), float(end), mark.getQuarterBPM())
-        for start, end, mark in score.metronomeMarkBoundaries()
-    ]
-
-    def seconds(ql: float) -> float:
-        total = 0.0
-        for start, end, bpm in bounds:
-            if ql <= start:
-                break
-            total += (min(ql, end) - start) * 60.0 / bpm
-        if ql > bounds[-1][1]:
-            total += (ql - bounds[-1][1]) * 60.0 / bounds[-1][2]
-        return total
-
-    return seconds
-
-
 def _measure_range(part, first: int, last: int) -> tuple[float, float]:
     measures = {m.number: m for m in part.getElementsByClass("Measure")}
     if first not in measures or last not in measures:
@@ -229,7 +208,7 @@ def _convert(piece: Piece) -> tuple[Song, dict]:
 
     score = corpus.parse(piece.corpus_path)
     parts = list(score.parts)
-    seconds = _seconds_map(score, piece.quarter_bpm)
+    seconds = seconds_of_offsets(score, piece.quarter_bpm)
     start_ql, end_ql = _measure_range(parts[0], piece.first_measure, piece.last_measure)
     if piece.right_parts is not None:
         right = set(piece.right_parts)
@@ -241,7 +220,7 @@ def _convert(piece: Piece) -> tuple[Song, dict]:
             for part in parts
         ]
         right = {0 if means[0] >= means[1] else 1}
-    raw: list[tuple[int, float, float, int, str | None]] = []
+    raw: list[RawNote] = []
     for index, part in enumerate(parts):
         hand = None if index in piece.free_parts else "right" if index in right else "left"
         for element in part.stripTies().recurse().notes:
@@ -261,27 +240,12 @@ def _convert(piece: Piece) -> tuple[Song, dict]:
                         seconds(offset) - seconds(start_ql),
                         int(velocity),
                         hand,
+                        None,
                     )
                 )
     # The piano has one key per pitch: a unison between voices is one note (the longer), and
     # a note struck while the same key still sounds ends the earlier one.
-    raw.sort(key=lambda r: (r[1], r[0], -r[2]))
-    kept: list[list] = []
-    last_of_pitch: dict[int, list] = {}
-    for pitch, onset, offset, velocity, hand in raw:
-        previous = last_of_pitch.get(pitch)
-        if previous is not None and abs(previous[1] - onset) < 1e-9:
-            continue  # unison: keep the first (longest)
-        if previous is not None and previous[2] > onset:
-            previous[2] = onset
-        entry = [pitch, onset, offset, velocity, hand]
-        kept.append(entry)
-        last_of_pitch[pitch] = entry
-    notes = [
-        Note(pitch, round(onset, 6), round(offset, 6), min(127, max(1, velocity)), hand=hand)
-        for pitch, onset, offset, velocity, hand in kept
-        if offset - onset > 1e-6
-    ]
+    notes = merge_voices(raw)
     staves = Song(tuple(notes), name=piece.name)
     hands_from = "staves" if not piece.free_parts else "staves, inner voices by the fingerer"
     fingered = assign_fingering(staves)

@@ -96,7 +96,8 @@ class Info:
     """
 
     song: tyro.conf.Positional[SongArg]
-    """A built-in song name, a MIDI file (.mid) or a PIG fingering file (.txt)."""
+    """A built-in song name, a MIDI file (.mid), a PIG fingering file (.txt) or a MusicXML score
+    (.musicxml, .mxl, .xml: hands from its staves, its finger numbers; needs music21)."""
 
     def run(self) -> None:
         from pianist.music import (

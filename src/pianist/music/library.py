@@ -25,6 +25,7 @@ from typing import Literal
 from pianist.music.errors import MidiFileError, MusicError, UnknownSongError
 from pianist.music.fingering import FingeringMode, assign_fingering, ensure_fingering
 from pianist.music.midi import read_midi
+from pianist.music.musicxml import MUSICXML_SUFFIXES, read_musicxml
 from pianist.music.notes import LEFT, RIGHT, Note, Song
 from pianist.music.open_library import (
     OPEN_SUITE,
@@ -314,7 +315,9 @@ def load_song(
     (``FrenchSuiteNo1Allemande``, ``RoboPianist-etude-12-FrenchSuiteNo1Allemande-v0``,
     ``pig-001``).
     ``.mid``/``.midi`` files go to :func:`read_midi` (no fingering), ``.txt`` files to
-    :func:`read_pig`; ``out_of_range`` is passed to both. A built-in name wins over a file of
+    :func:`read_pig`, ``.musicxml``/``.mxl``/``.xml`` scores to
+    :func:`pianist.music.musicxml.read_musicxml` (hands from the staves, the score's finger
+    numbers; needs music21); ``out_of_range`` is passed to each. A built-in name wins over a file of
     the same name in the working directory.
 
     ``fingering`` (None leaves the song as loaded) applies
@@ -327,8 +330,8 @@ def load_song(
         UnknownSongError: not a built-in name and does not look like a path (close matches are
             suggested).
         MidiFileError: looks like a path (has a suffix or a directory part) but does not exist.
-        MusicError: the file exists but its suffix is not .mid, .midi or .txt; or any reader
-            error; or ``fingering="file"`` and some notes have no finger.
+        MusicError: the file exists but its suffix is not .mid, .midi, .txt or MusicXML's; or
+            any reader error; or ``fingering="file"`` and some notes have no finger.
         PigDatasetError: a PIG piece name before ``pianist import-pig`` has run.
     """
     song = _load_song(name_or_path, out_of_range)
@@ -369,6 +372,11 @@ def _load_song(
         return read_midi(path, out_of_range=out_of_range)
     if suffix == ".txt":
         return read_pig(path, out_of_range=out_of_range)
+    if suffix in MUSICXML_SUFFIXES:
+        return read_musicxml(path, out_of_range=out_of_range)
     if path.is_dir():
         raise MusicError(f"{path}: is a directory, not a song file")
-    raise MusicError(f"{path}: unsupported song file type (use .mid, .midi or a PIG .txt)")
+    raise MusicError(
+        f"{path}: unsupported song file type (use .mid, .midi, a PIG .txt, or MusicXML: "
+        ".musicxml, .mxl, .xml)"
+    )

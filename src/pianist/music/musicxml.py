@@ -1,0 +1,185 @@
+"""Read MusicXML scores (``.musicxml``, ``.mxl``, ``.xml``) as :class:`~pianist.music.notes.Song`.
+
+music21 parses the score (``pip install 'pianist[musicxml]'``); it is imported only when a
+score is read. Reading conventions (a caller should know these):
+
+- Every part's notes and chords are read; tied notes are joined; grace notes (no time of their
+  own) are left out; repeats are played once, as written (not expanded).
+- Times come from the score's metronome marks (quarter = 120 before the first one, music21's
+  default). Velocities from the score's dynamics where music21 gives them, else 80. Pedal
+  marks are not read: the song has no sustain.
+- The piano has one key per pitch: a unison between voices or staves is one note (the longest),
+  and a note struck while its key still sounds ends the earlier one.
+- Hands: a score of exactly two parts (a piano's grand staff, or any two staves) gives the upper
+  staff to the right hand and the lower to the left. Other scores give no hands (they are
+  estimated, as for a MIDI file).
+- Fingering: the score's finger numbers (1-5, the first of a substitution such as "4-3") are
+  kept on the notes whose hand is known; a chord's numbers go to its notes in order when there
+  is one per note. Notes without one are fingered by ``--fingering auto``.
+- Absurd scores are refused as MIDI files are: a timeline past one hour, no notes.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Iterable
+from pathlib import Path
+from typing import Any, Literal
+
+from pianist.music.errors import MusicError, OutOfRangeError, one_line
+from pianist.music.fileio import require_file
+from pianist.music.midi import MAX_DURATION_S
+from pianist.music.notes import LEFT, RIGHT, Note, Song
+from pianist.music.pitch import HIGHEST_PITCH, LOWEST_PITCH
+
+#: File suffixes read as MusicXML (``.mxl`` is the compressed form).
+MUSICXML_SUFFIXES = (".musicxml", ".mxl", ".xml")
+#: Velocity of a note whose score gives none.
+DEFAULT_VELOCITY = 80
+
+#: One note as read, before the voices are merged: (pitch, onset s, offset s, velocity, hand,
+#: finger 0-9 or None).
+RawNote = tuple[int, float, float, int, str | None, int | None]
+
+
+def seconds_of_offsets(score: Any, quarter_bpm: float | None = None) -> Callable[[float], float]:
+    """The map from a music21 offset (in quarter lengths from the score's start) to seconds:
+    through the score's metronome marks, or at ``quarter_bpm`` throughout when given."""
+    if quarter_bpm is not None:
+        return lambda ql: float(ql) * 60.0 / quarter_bpm
+    bounds = [
+        (float(start), float(end), mark.getQuarterBPM())
+        for start, end, mark in score.metronomeMarkBoundaries()
+    ]
+
+    def seconds(ql: float) -> float:
+        total = 0.0
+        for start, end, bpm in bounds:
+            if ql <= start:
+                break
+            total += (min(ql, end) - start) * 60.0 / bpm
+        if ql > bounds[-1][1]:
+            total += (ql - bounds[-1][1]) * 60.0 / bounds[-1][2]
+        return total
+
+    return seconds
+
+
+def merge_voices(raw: Iterable[RawNote]) -> list[Note]:
+    """Notes of several voices on one keyboard: a unison is one note (the longest; the first of
+    equals keeps its hand and finger), a note struck while its key sounds ends the earlier one,
+    and notes left without length are dropped."""
+    ordered = sorted(raw, key=lambda r: (r[1], r[0], -r[2]))
+    kept: list[list[Any]] = []
+    last_of_pitch: dict[int, list[Any]] = {}
+    for pitch, onset, offset, velocity, hand, finger in ordered:
+        previous = last_of_pitch.get(pitch)
+        if previous is not None and abs(previous[1] - onset) < 1e-9:
+            continue  # unison: the first (longest) stays
+        if previous is not None and previous[2] > onset:
+            previous[2] = onset
+        entry = [pitch, onset, offset, velocity, hand, finger]
+        kept.append(entry)
+        last_of_pitch[pitch] = entry
+    return [
+        Note(
+            pitch,
+            round(onset, 6),
+            round(offset, 6),
+            min(127, max(1, velocity)),
+            finger=finger,
+            hand=hand if finger is None else None,
+        )
+        for pitch, onset, offset, velocity, hand, finger in kept
+        if offset - onset > 1e-6
+    ]
+
+
+def read_musicxml(
+    path: str | os.PathLike[str], *, out_of_range: Literal["error", "drop"] = "error"
+) -> Song:
+    """Read a MusicXML score into a :class:`Song` (see the module docstring's conventions).
+
+    Args:
+        path: a ``.musicxml``, ``.mxl`` or ``.xml`` file.
+        out_of_range: "error" raises :class:`OutOfRangeError` when any note lies outside MIDI
+            21..108; "drop" leaves such notes out.
+
+    Raises:
+        MusicError: music21 missing; a missing, unreadable or non-MusicXML file; no notes; a
+            timeline longer than one hour.
+        OutOfRangeError: notes outside the piano's keys with ``out_of_range="error"``.
+    """
+    if out_of_range not in ("error", "drop"):
+        raise ValueError(f"out_of_range must be 'error' or 'drop', got {out_of_range!r}")
+    path = Path(path)
+    require_file(path, MusicError, "MusicXML file")
+    try:
+        from music21 import converter
+    except ImportError:
+        raise MusicError(
+            f"{path}: reading MusicXML needs music21 (pip install 'pianist[musicxml]')"
+        ) from None
+    try:
+        score = converter.parse(str(path), format="musicxml", forceSource=True)
+    except Exception as exc:  # music21 raises many types for a file it cannot read
+        raise MusicError(f"{path}: not a readable MusicXML score ({one_line(exc)})") from None
+    parts = list(getattr(score, "parts", ())) or [score]
+    seconds = seconds_of_offsets(score)
+    hands = (RIGHT, LEFT) if len(parts) == 2 else (None,) * len(parts)
+    raw: list[RawNote] = []
+    for part, hand in zip(parts, hands, strict=True):
+        raw.extend(_part_notes(part, hand, seconds))
+    outside = [r for r in raw if not LOWEST_PITCH <= r[0] <= HIGHEST_PITCH]
+    if outside and out_of_range == "error":
+        pitches = [r[0] for r in outside]
+        raise OutOfRangeError(
+            f"{path}: {len(outside)} note(s) outside the piano's range MIDI "
+            f"{LOWEST_PITCH}..{HIGHEST_PITCH} (pitches {min(pitches)}..{max(pitches)}); "
+            "leave them out with out_of_range='drop' (pianist play --out-of-range drop)"
+        )
+    notes = merge_voices(r for r in raw if LOWEST_PITCH <= r[0] <= HIGHEST_PITCH)
+    if not notes:
+        raise MusicError(f"{path}: no notes" + (" in the piano's range" if outside else ""))
+    end = max(n.offset_s for n in notes)
+    if end > MAX_DURATION_S:
+        raise MusicError(
+            f"{path}: timeline longer than {MAX_DURATION_S / 3600:g} hour (reaches {end:.0f} s); "
+            "refusing an absurd length"
+        )
+    return Song(notes=tuple(notes), name=path.stem)
+
+
+def _part_notes(part: Any, hand: str | None, seconds: Callable[[float], float]) -> list[RawNote]:
+    """The notes of one part (a staff), ties joined, grace notes left out."""
+    raw: list[RawNote] = []
+    for element in part.stripTies().recurse().notes:
+        length = float(element.duration.quarterLength)
+        if length <= 0:  # grace notes have no time of their own
+            continue
+        onset_ql = float(element.getOffsetInHierarchy(part))
+        onset, offset = seconds(onset_ql), seconds(onset_ql + length)
+        velocity = element.volume.velocity or DEFAULT_VELOCITY
+        pitches = [p.midi for p in element.pitches]
+        fingers = _finger_numbers(element)
+        if len(fingers) != len(pitches):
+            fingers = [None] * len(pitches)
+        for pitch, number in zip(pitches, fingers, strict=True):
+            finger = None
+            if hand is not None and number is not None:
+                finger = number - 1 + (0 if hand == RIGHT else 5)
+            raw.append((pitch, onset, offset, int(velocity), hand, finger))
+    return raw
+
+
+def _finger_numbers(element: Any) -> list[int | None]:
+    """The finger numbers (1-5) of a note's or chord's fingering marks, in order; None for a
+    mark that is not one."""
+    numbers: list[int | None] = []
+    for mark in element.articulations:
+        if type(mark).__name__ != "Fingering":
+            continue
+        text = str(mark.fingerNumber).strip()
+        first = text[:1]  # "4-3", a substitution: the finger that strikes
+        numbers.append(int(first) if first in "12345" and first else None)
+    return numbers

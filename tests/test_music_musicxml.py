@@ -1,0 +1,159 @@
+"""read_musicxml on scores written out here: hands from staves, the score's fingers, times."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import pytest
+
+from pianist.cli import main
+from pianist.music import MusicError, OutOfRangeError, load_song
+from pianist.music.musicxml import merge_voices, read_musicxml
+
+
+def _note(
+    step: str,
+    octave: int,
+    duration: int,
+    *,
+    staff: int = 1,
+    chord: bool = False,
+    tie: str | None = None,
+    fingering: str | None = None,
+) -> str:
+    """One <note> (durations in quarters: a division of 1), its children in the schema's order."""
+    notations = ""
+    if tie is not None:
+        notations += f'<tied type="{tie}"/>'
+    if fingering is not None:
+        notations += f"<technical><fingering>{fingering}</fingering></technical>"
+    return (
+        "<note>"
+        + ("<chord/>" if chord else "")
+        + f"<pitch><step>{step}</step><octave>{octave}</octave></pitch>"
+        + f"<duration>{duration}</duration>"
+        + (f'<tie type="{tie}"/>' if tie else "")
+        + f"<staff>{staff}</staff>"
+        + (f"<notations>{notations}</notations>" if notations else "")
+        + "</note>"
+    )
+
+
+def _score(measure: str, parts: int = 1, staves: int = 2) -> str:
+    """A partwise score of ``parts`` identical parts of one 4/4 measure (``measure``'s notes)."""
+    header = '<?xml version="1.0" encoding="UTF-8"?><score-partwise version="3.1"><part-list>'
+    header += "".join(
+        f'<score-part id="P{i}"><part-name>Piano</part-name></score-part>'
+        for i in range(1, parts + 1)
+    )
+    body = "".join(
+        f'<part id="P{i}"><measure number="1"><attributes><divisions>1</divisions>'
+        f"<time><beats>4</beats><beat-type>4</beat-type></time><staves>{staves}</staves>"
+        "</attributes>"
+        '<direction placement="above"><direction-type><metronome><beat-unit>quarter</beat-unit>'
+        '<per-minute>60</per-minute></metronome></direction-type><sound tempo="60"/></direction>'
+        f"{measure}</measure></part>"
+        for i in range(1, parts + 1)
+    )
+    return header + "</part-list>" + body + "</score-partwise>"
+
+
+# The right hand: E5 (finger 3); the chord C4 E4 G4 (1 3 5); a grace D5; C5 tied over two
+# beats. The left hand: C3 for the whole bar. Quarter = 60: one beat a second.
+GRAND_STAFF = (
+    _note("E", 5, 1, fingering="3")
+    + _note("C", 4, 1, fingering="1")
+    + _note("E", 4, 1, chord=True, fingering="3")
+    + _note("G", 4, 1, chord=True, fingering="5")
+    + "<note><grace/><pitch><step>D</step><octave>5</octave></pitch><staff>1</staff></note>"
+    + _note("C", 5, 1, tie="start")
+    + _note("C", 5, 1, tie="stop")
+    + "<backup><duration>4</duration></backup>"
+    + _note("C", 3, 4, staff=2)
+)
+
+
+def _write(path: Path, text: str) -> Path:
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def test_a_grand_staff_gives_hands_fingers_and_times(tmp_path: Path) -> None:
+    song = read_musicxml(_write(tmp_path / "piece.musicxml", _score(GRAND_STAFF)))
+    notes = [(n.pitch, n.onset_s, n.offset_s, n.hand, n.finger) for n in song.notes]
+    assert notes == [
+        (48, 0.0, 4.0, "left", None),  # the lower staff, no finger in the score
+        (76, 0.0, 1.0, "right", 2),  # finger 3 of the right hand is index 2
+        (60, 1.0, 2.0, "right", 0),
+        (64, 1.0, 2.0, "right", 2),
+        (67, 1.0, 2.0, "right", 4),
+        (72, 2.0, 4.0, "right", None),  # tied over two beats; the grace note left out
+    ]
+    assert song.name == "piece" and not song.sustain
+    # The fingering estimate keeps the score's fingers and hands and fills in the rest.
+    played = load_song(tmp_path / "piece.musicxml", fingering="auto")
+    assert played.has_full_fingering
+    assert [(n.pitch, n.finger) for n in played.notes][1:5] == [(76, 2), (60, 0), (64, 2), (67, 4)]
+    assert [n.hand for n in played.notes] == [n.hand for n in song.notes]
+
+
+def test_a_substitution_keeps_its_first_finger_and_other_marks_are_no_fingers() -> None:
+    from music21 import articulations, note
+
+    marked = note.Note("C4")
+    marked.articulations += [articulations.Fingering("4-3"), articulations.Accent()]
+    from pianist.music.musicxml import _finger_numbers
+
+    assert _finger_numbers(marked) == [4]
+    odd = note.Note("C4")
+    odd.articulations.append(articulations.Fingering("p"))  # a guitarist's thumb
+    assert _finger_numbers(odd) == [None]
+
+
+def test_three_staves_give_no_hands(tmp_path: Path) -> None:
+    one_staff = _note("C", 4, 4).replace("<staff>1</staff>", "")
+    song = read_musicxml(_write(tmp_path / "trio.xml", _score(one_staff, parts=3, staves=1)))
+    assert [(n.pitch, n.hand, n.finger) for n in song.notes] == [(60, None, None)]  # unison
+
+
+def test_voices_merge_on_one_keyboard() -> None:
+    raw = [
+        (60, 0.0, 1.0, 80, "right", 0),
+        (60, 0.0, 2.0, 80, "left", None),  # unison: the longer note stays
+        (60, 1.5, 3.0, 80, "right", None),  # struck again while it sounds: the first ends
+        (62, 1.0, 1.0, 80, None, None),  # no length
+    ]
+    assert [(n.pitch, n.onset_s, n.offset_s, n.hand) for n in merge_voices(raw)] == [
+        (60, 0.0, 1.5, "left"),
+        (60, 1.5, 3.0, "right"),
+    ]
+
+
+def test_bad_scores_are_clear_errors(tmp_path: Path, monkeypatch) -> None:
+    def message(path: Path, error: type[Exception] = MusicError) -> str:
+        with pytest.raises(error) as info:
+            load_song(path)
+        assert "\n" not in str(info.value) and str(path) in str(info.value)
+        return str(info.value)
+
+    assert "not a readable MusicXML" in message(_write(tmp_path / "x.xml", "<html></html>"))
+    assert "empty" in message(_write(tmp_path / "empty.musicxml", ""))
+    assert "not found" in message(tmp_path / "missing.mxl")
+    rest = "<note><rest/><duration>4</duration><staff>1</staff></note>"
+    assert "no notes" in message(_write(tmp_path / "rests.musicxml", _score(rest)))
+    high = _note("B", 8, 1) + _note("C", 4, 1)  # B8 is MIDI 119, above the top C (108)
+    path = _write(tmp_path / "high.musicxml", _score(high))
+    assert "--out-of-range drop" in message(path, OutOfRangeError)
+    assert [n.pitch for n in load_song(path, out_of_range="drop").notes] == [60]
+    monkeypatch.setitem(sys.modules, "music21", None)  # as if it were not installed
+    assert "pip install 'pianist[musicxml]'" in message(tmp_path / "rests.musicxml")
+
+
+def test_play_a_musicxml_score(tmp_path: Path) -> None:
+    path = _write(tmp_path / "piece.musicxml", _score(GRAND_STAFF))
+    out = tmp_path / "out"
+    assert main(["play", str(path), "--no-audio", "--out", str(out)]) == 0
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["f1"] > 0.7 and metrics["steps"] == 81
