@@ -152,7 +152,8 @@ def read_midi(path: str | os.PathLike[str], *, out_of_range: OutOfRange = "error
                 )
             tempo, segment_tick, segment_s = msg.tempo, tick, now
         elif kind in ("note_on", "note_off") and msg.channel == PERCUSSION_CHANNEL:
-            drum_hits += kind == "note_on" and msg.velocity > 0
+            if kind == "note_on" and msg.velocity > 0:
+                drum_hits += 1
         elif kind == "note_on" and msg.velocity > 0:
             if (msg.channel, msg.note) in stray_offs:
                 stray_offs.discard((msg.channel, msg.note))
