@@ -118,6 +118,19 @@ def test_three_staves_give_no_hands(tmp_path: Path) -> None:
     assert [(n.pitch, n.hand, n.finger) for n in song.notes] == [(60, None, None)]  # unison
 
 
+def test_a_voice_above_a_grand_staff_leaves_the_staves_their_hands(tmp_path: Path) -> None:
+    # A song: the voice's part (one staff, G4 for the bar), then the piano's grand staff.
+    voice = _note("G", 4, 4).replace("<staff>1</staff>", "")
+    piano = _note("E", 5, 4) + "<backup><duration>4</duration></backup>" + _note("C", 3, 4, staff=2)
+    text = _score(voice, parts=2, staves=1)
+    # The second part becomes the piano: two staves, and its own notes.
+    second = text.index('<part id="P2">')
+    piano_part = text[second:].replace("<staves>1</staves>", "<staves>2</staves>")
+    piano_part = piano_part.replace(voice, piano)
+    song = read_musicxml(_write(tmp_path / "song.musicxml", text[:second] + piano_part))
+    assert [(n.pitch, n.hand) for n in song.notes] == [(48, "left"), (67, None), (76, "right")]
+
+
 def test_voices_merge_on_one_keyboard() -> None:
     raw = [
         (60, 0.0, 1.0, 80, "right", 0),

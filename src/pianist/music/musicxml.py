@@ -11,8 +11,10 @@ score is read. Reading conventions (a caller should know these):
 - The piano has one key per pitch: a unison between voices or staves is one note (the longest),
   and a note struck while its key still sounds ends the earlier one.
 - Hands: a score of exactly two parts (a piano's grand staff, or any two staves) gives the upper
-  staff to the right hand and the lower to the left. Other scores give no hands (they are
-  estimated, as for a MIDI file).
+  staff to the right hand and the lower to the left; in a larger score with one grand staff
+  (a song's voice above its piano part), that staff's two halves do, and the other parts'
+  notes get theirs estimated. Other scores give no hands (they are estimated, as for a MIDI
+  file).
 - Fingering: the score's finger numbers (1-5, the first of a substitution such as "4-3") are
   kept on the notes whose hand is known; a chord's numbers go to its notes in order when there
   is one per note. Notes without one are fingered by ``--fingering auto``.
@@ -126,7 +128,7 @@ def read_musicxml(
         raise MusicError(f"{path}: not a readable MusicXML score ({one_line(exc)})") from None
     parts = list(getattr(score, "parts", ())) or [score]
     seconds = seconds_of_offsets(score)
-    hands = (RIGHT, LEFT) if len(parts) == 2 else (None,) * len(parts)
+    hands = _hands_of_parts(parts)
     raw: list[RawNote] = []
     for part, hand in zip(parts, hands, strict=True):
         raw.extend(_part_notes(part, hand, seconds))
@@ -148,6 +150,19 @@ def read_musicxml(
             "refusing an absurd length"
         )
     return Song(notes=tuple(notes), name=path.stem)
+
+
+def _hands_of_parts(parts: list[Any]) -> tuple[str | None, ...]:
+    """The hand of each part: two parts are the right (upper) and left hand; otherwise the two
+    staves of a grand staff, if the score has exactly one, and None for the rest."""
+    if len(parts) == 2:
+        return (RIGHT, LEFT)
+    # music21 parses a part of two staves as two PartStaff parts, in staff order.
+    staves = [part for part in parts if type(part).__name__ == "PartStaff"]
+    if len(staves) != 2:
+        return (None,) * len(parts)
+    upper, lower = staves
+    return tuple(RIGHT if p is upper else LEFT if p is lower else None for p in parts)
 
 
 def _part_notes(part: Any, hand: str | None, seconds: Callable[[float], float]) -> list[RawNote]:
