@@ -86,14 +86,15 @@ def _running(pids: set[int], wait_s: float = 5.0) -> set[int]:
 def test_grid_expands_song_by_song_then_variant_physics_seed(tmp_path):
     folder = tmp_path / "midi"
     folder.mkdir()
-    for name in ("b.mid", "a.MIDI", "c.txt", "notes.md"):
+    for name in ("b.mid", "a.MIDI", "c.txt", "d.mxl", "e.musicxml", "model.xml", "notes.md"):
         (folder / name).write_bytes(b"")
     songs = songs_of(["debug"], ["twinkle-twinkle", "extra-song"], [folder])
     debug = list_songs("debug")
-    # Suites first, then the list, then the folder's song files (MIDI, PIG) sorted; each once.
-    files = [str(folder / "a.MIDI"), str(folder / "b.mid"), str(folder / "c.txt")]
+    # Suites first, then the list, then the folder's song files (MIDI, PIG, MusicXML but not
+    # plain .xml) sorted; each once.
+    files = [str(folder / n) for n in ("a.MIDI", "b.mid", "c.txt", "d.mxl", "e.musicxml")]
     assert [s for s, _ in songs] == [*debug, "extra-song", *files]
-    assert [suite for _, suite in songs] == ["debug"] * len(debug) + ["songs"] + ["midi"] * 3
+    assert [suite for _, suite in songs] == ["debug"] * len(debug) + ["songs"] + ["midi"] * 5
 
     cells = expand("play", songs[:2], ["planner", "zero"], ["faithful", "fast"], [0, 1, 2])
     assert len(cells) == 2 * 2 * 2 * 3

@@ -83,7 +83,7 @@ def resolve_songs(entries: tuple[str, ...] | list[str]) -> list[str]:
         MusicError: a song cannot be loaded.
     """
     from pianist.music import SUITES, MusicError, list_songs, load_song
-    from pianist.music.fileio import song_files
+    from pianist.music.fileio import SONG_FILE_SUFFIXES, song_files
 
     if not entries:
         raise ValueError("no songs: give --songs a suite, a folder of MIDI files or a song")
@@ -95,7 +95,8 @@ def resolve_songs(entries: tuple[str, ...] | list[str]) -> list[str]:
         elif path.is_dir():
             files = song_files(path)
             if not files:
-                raise ValueError(f"folder {path} holds no song files (.mid, .midi, PIG .txt)")
+                kinds = ", ".join(SONG_FILE_SUFFIXES)
+                raise ValueError(f"folder {path} holds no song files ({kinds})")
             refs.extend(str(p) for p in files)
         else:
             try:

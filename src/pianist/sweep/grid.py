@@ -111,7 +111,7 @@ def songs_of(
         PigDatasetError: a PIG suite before ``pianist import-pig`` has run.
     """
     from pianist.music import list_songs
-    from pianist.music.fileio import song_files
+    from pianist.music.fileio import SONG_FILE_SUFFIXES, song_files
 
     found: list[tuple[str, str]] = []
     for suite in suites:
@@ -123,7 +123,8 @@ def songs_of(
             raise ValueError(f"song folder {path} does not exist or is not a folder")
         files = song_files(path)
         if not files:
-            raise ValueError(f"song folder {path} holds no song file (.mid, .midi, PIG .txt)")
+            kinds = ", ".join(SONG_FILE_SUFFIXES)
+            raise ValueError(f"song folder {path} holds no song file ({kinds})")
         suite = path.resolve().name or str(path)
         found.extend((str(p), suite) for p in files)
     seen: set[str] = set()
