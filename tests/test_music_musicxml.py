@@ -131,6 +131,25 @@ def test_a_voice_above_a_grand_staff_leaves_the_staves_their_hands(tmp_path: Pat
     assert [(n.pitch, n.hand) for n in song.notes] == [(48, "left"), (67, None), (76, "right")]
 
 
+def _pedal(kind: str) -> str:
+    return (
+        f'<direction><direction-type><pedal type="{kind}" line="yes"/></direction-type>'
+        "<staff>2</staff></direction>"
+    )
+
+
+def test_a_sustain_pedal_mark_holds_from_its_first_note_to_the_end_of_its_last(
+    tmp_path: Path,
+) -> None:
+    # Right hand: four quarters. Left hand: C3 for two beats under the pedal, then G3 after it.
+    measure = "".join(_note(step, 5, 1) for step in "CDEF")
+    measure += "<backup><duration>4</duration></backup>" + _pedal("start")
+    measure += _note("C", 3, 2, staff=2) + _pedal("stop") + _note("G", 3, 2, staff=2)
+    song = read_musicxml(_write(tmp_path / "pedal.musicxml", _score(measure)))
+    assert song.sustain == ((0.0, 2.0),)
+    assert [n.pitch for n in song.notes if n.hand == "left"] == [48, 55]
+
+
 def test_voices_merge_on_one_keyboard() -> None:
     raw = [
         (60, 0.0, 1.0, 80, "right", 0),

@@ -6,8 +6,9 @@ score is read. Reading conventions (a caller should know these):
 - Every part's notes and chords are read; tied notes are joined; grace notes (no time of their
   own) are left out; repeats are played once, as written (not expanded).
 - Times come from the score's metronome marks (quarter = 120 before the first one, music21's
-  default). Velocities from the score's dynamics where music21 gives them, else 80. Pedal
-  marks are not read: the song has no sustain.
+  default). Velocities from the score's dynamics where music21 gives them, else 80.
+- Sustain-pedal marks are the song's pedal intervals, each from the onset of the first note
+  under the mark to the end of the last (a pedal change inside a mark is not read as a lift).
 - The piano has one key per pitch: a unison between voices or staves is one note (the longest),
   and a note struck while its key still sounds ends the earlier one.
 - Hands: a score of exactly two parts (a piano's grand staff, or any two staves) gives the upper
@@ -149,7 +150,33 @@ def read_musicxml(
             f"{path}: timeline longer than {MAX_DURATION_S / 3600:g} hour (reaches {end:.0f} s); "
             "refusing an absurd length"
         )
-    return Song(notes=tuple(notes), name=path.stem)
+    return Song(notes=tuple(notes), sustain=_pedal_intervals(score, seconds), name=path.stem)
+
+
+def _pedal_intervals(
+    score: Any, seconds: Callable[[float], float]
+) -> tuple[tuple[float, float], ...]:
+    """(start s, end s) of the score's sustain-pedal marks, overlapping ones merged."""
+    spans: list[tuple[float, float]] = []
+    for mark in score.recurse().getElementsByClass("PedalMark"):
+        kind = getattr(mark, "pedalType", None)
+        if kind is not None and getattr(kind, "name", str(kind)) != "Sustain":
+            continue  # the sostenuto and soft pedals do not hold the keys' notes
+        under = mark.getSpannedElements()
+        if not under:
+            continue
+        last = under[-1]
+        start = seconds(float(under[0].getOffsetInHierarchy(score)))
+        end = seconds(float(last.getOffsetInHierarchy(score)) + float(last.duration.quarterLength))
+        if end > start:
+            spans.append((round(start, 6), round(end, 6)))
+    merged: list[list[float]] = []
+    for start, end in sorted(spans):
+        if merged and start <= merged[-1][1]:
+            merged[-1][1] = max(merged[-1][1], end)
+        else:
+            merged.append([start, end])
+    return tuple((start, end) for start, end in merged)
 
 
 def _hands_of_parts(parts: list[Any]) -> tuple[str | None, ...]:
