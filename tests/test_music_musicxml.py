@@ -183,6 +183,19 @@ def test_bad_scores_are_clear_errors(tmp_path: Path, monkeypatch) -> None:
     assert "pip install 'pianist[musicxml]'" in message(tmp_path / "rests.musicxml")
 
 
+def test_importing_pianist_does_not_load_music21() -> None:
+    import subprocess
+
+    code = "import sys, pianist, pianist.music, pianist.cli; assert 'music21' not in sys.modules"
+    assert subprocess.run([sys.executable, "-c", code], check=False).returncode == 0
+
+
+def test_info_says_the_hands_come_from_the_staves(tmp_path: Path, capsys) -> None:
+    path = _write(tmp_path / "piece.musicxml", _score(GRAND_STAFF))
+    assert main(["info", str(path)]) == 0
+    assert "hands:      left, right (from the score's staves)" in capsys.readouterr().out
+
+
 def test_play_a_musicxml_score(tmp_path: Path) -> None:
     path = _write(tmp_path / "piece.musicxml", _score(GRAND_STAFF))
     out = tmp_path / "out"

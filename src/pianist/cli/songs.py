@@ -101,6 +101,7 @@ class Info:
 
     def run(self) -> None:
         from pianist.music import (
+            MUSICXML_SUFFIXES,
             check_playability,
             describe_midi_hands,
             goal_frames,
@@ -121,13 +122,17 @@ class Info:
         frames = goal_frames(song)
         pitches = [n.pitch for n in song.notes]
         hands = ", ".join(sorted(played.hands)) or "-"
-        if any(n.hand is None for n in song.notes):
+        from_score = Path(self.song).suffix.lower() in MUSICXML_SUFFIXES
+        if from_score and song.notes and all(n.hand is not None for n in song.notes):
+            hands += " (from the score's staves)"
+        elif any(n.hand is None for n in song.notes):
             is_midi = Path(self.song).suffix.lower() in (".mid", ".midi")
             parts = describe_midi_hands(self.song) if is_midi else None
             if parts is not None:
                 hands += f" (from the MIDI file, {parts})"
             elif song.hands:
-                hands += " (partly estimated: the file names a hand for some notes)"
+                where = "the score's staves" if from_score else "the file"
+                hands += f" (partly estimated: {where} name a hand for some notes)"
             else:
                 hands += " (estimated: the file names none)"
         fingering = f"{100 * song.fingering_coverage:.0f}% of notes"
