@@ -150,6 +150,61 @@ def test_a_sustain_pedal_mark_holds_from_its_first_note_to_the_end_of_its_last(
     assert [n.pitch for n in song.notes if n.hand == "left"] == [48, 55]
 
 
+def _one_staff_score(*measures: str, pedalled: int | None = None) -> str:
+    """A one-part, one-staff score of whole notes, one per measure, given as "C",
+    "D|forward", "E|backward" (the barline's repeat sign); measure ``pedalled`` (from 1)
+    under a sustain-pedal mark."""
+    attributes = (
+        "<attributes><divisions>1</divisions><time><beats>4</beats><beat-type>4</beat-type>"
+        '</time></attributes><sound tempo="60"/>'
+    )
+    barlines = {
+        "forward": '<barline location="left"><repeat direction="forward"/></barline>',
+        "backward": '<barline location="right"><repeat direction="backward"/></barline>',
+    }
+    body = ""
+    for number, spec in enumerate(measures, start=1):
+        step, _, repeat = spec.partition("|")
+        note = _note(step, 4, 4).replace("<staff>1</staff>", "")
+        left = barlines[repeat] if repeat == "forward" else ""
+        right = barlines[repeat] if repeat == "backward" else ""
+        first = attributes if number == 1 else ""
+        if number == pedalled:
+            note = _pedal("start").replace("<staff>2</staff>", "") + note
+            note += _pedal("stop").replace("<staff>2</staff>", "")
+        body += f'<measure number="{number}">{left}{first}{note}{right}</measure>'
+    return (
+        '<?xml version="1.0" encoding="UTF-8"?><score-partwise version="3.1"><part-list>'
+        '<score-part id="P1"><part-name>Piano</part-name></score-part></part-list>'
+        f'<part id="P1">{body}</part></score-partwise>'
+    )
+
+
+def test_repeats_are_played_as_a_performer_plays_them(tmp_path: Path) -> None:
+    path = _write(
+        tmp_path / "minuet.musicxml", _one_staff_score("C", "D|forward", "E|backward", "F")
+    )
+    assert [(n.pitch, n.onset_s) for n in read_musicxml(path).notes] == [
+        (60, 0.0),
+        (62, 4.0),
+        (64, 8.0),
+        (62, 12.0),
+        (64, 16.0),
+        (65, 20.0),
+    ]
+    once = read_musicxml(path, expand_repeats=False)
+    assert [n.pitch for n in once.notes] == [60, 62, 64, 65]
+    # A pedal mark inside the repeated part is pressed each time it is played.
+    measures = ("C", "D|forward", "E|backward", "F")
+    pedalled = _write(tmp_path / "pedal.musicxml", _one_staff_score(*measures, pedalled=3))
+    assert read_musicxml(pedalled).sustain == ((8.0, 12.0), (16.0, 20.0))
+    assert read_musicxml(pedalled, expand_repeats=False).sustain == ((8.0, 12.0),)
+    # Two forward signs and no backward one: played once as written, and said so.
+    bad = _write(tmp_path / "bad.musicxml", _one_staff_score("C", "D|forward", "E|forward", "F"))
+    with pytest.warns(UserWarning, match="could not be expanded"):
+        assert [n.pitch for n in read_musicxml(bad).notes] == [60, 62, 64, 65]
+
+
 def test_voices_merge_on_one_keyboard() -> None:
     raw = [
         (60, 0.0, 1.0, 80, "right", 0),

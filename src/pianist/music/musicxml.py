@@ -4,7 +4,9 @@ music21 parses the score (``pip install 'pianist[musicxml]'``); it is imported o
 score is read. Reading conventions (a caller should know these):
 
 - Every part's notes and chords are read; tied notes are joined; grace notes (no time of their
-  own) are left out; repeats are played once, as written (not expanded).
+  own) are left out. Repeats are played as a performer plays them (music21 expands repeat
+  signs, first and second endings, da capo and dal segno); a score whose repeats music21
+  cannot expand is played once as written, with a warning.
 - Times come from the score's metronome marks (quarter = 120 before the first one, music21's
   default). Velocities from the score's dynamics where music21 gives them, else 80.
 - Sustain-pedal marks are the song's pedal intervals, each from the onset of the first note
@@ -25,6 +27,7 @@ score is read. Reading conventions (a caller should know these):
 from __future__ import annotations
 
 import os
+import warnings
 from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any, Literal
@@ -99,7 +102,10 @@ def merge_voices(raw: Iterable[RawNote]) -> list[Note]:
 
 
 def read_musicxml(
-    path: str | os.PathLike[str], *, out_of_range: Literal["error", "drop"] = "error"
+    path: str | os.PathLike[str],
+    *,
+    out_of_range: Literal["error", "drop"] = "error",
+    expand_repeats: bool = True,
 ) -> Song:
     """Read a MusicXML score into a :class:`Song` (see the module docstring's conventions).
 
@@ -107,6 +113,7 @@ def read_musicxml(
         path: a ``.musicxml``, ``.mxl`` or ``.xml`` file.
         out_of_range: "error" raises :class:`OutOfRangeError` when any note lies outside MIDI
             21..108; "drop" leaves such notes out.
+        expand_repeats: play the repeats (False: once through, as written).
 
     Raises:
         MusicError: music21 missing; a missing, unreadable or non-MusicXML file; no notes; a
@@ -127,6 +134,16 @@ def read_musicxml(
         score = converter.parse(str(path), format="musicxml", forceSource=True)
     except Exception as exc:  # music21 raises many types for a file it cannot read
         raise MusicError(f"{path}: not a readable MusicXML score ({one_line(exc)})") from None
+    pedals = _sustain_marks(score)  # before expanding: the marks point at the score's notes
+    if expand_repeats:
+        try:
+            score = score.expandRepeats()
+        except Exception as exc:  # music21's expander refuses repeats it cannot make sense of
+            warnings.warn(
+                f"{path}: its repeats could not be expanded ({one_line(exc)}); played once "
+                "as written",
+                stacklevel=2,
+            )
     parts = list(getattr(score, "parts", ())) or [score]
     seconds = seconds_of_offsets(score)
     hands = _hands_of_parts(parts)
@@ -150,26 +167,43 @@ def read_musicxml(
             f"{path}: timeline longer than {MAX_DURATION_S / 3600:g} hour (reaches {end:.0f} s); "
             "refusing an absurd length"
         )
-    return Song(notes=tuple(notes), sustain=_pedal_intervals(score, seconds), name=path.stem)
+    sustain = _pedal_intervals(pedals, score, seconds)
+    return Song(notes=tuple(notes), sustain=sustain, name=path.stem)
 
 
-def _pedal_intervals(
-    score: Any, seconds: Callable[[float], float]
-) -> tuple[tuple[float, float], ...]:
-    """(start s, end s) of the score's sustain-pedal marks, overlapping ones merged."""
-    spans: list[tuple[float, float]] = []
+def _sustain_marks(score: Any) -> list[tuple[Any, Any]]:
+    """(first, last) note or chord under each of the score's sustain-pedal marks."""
+    marks = []
     for mark in score.recurse().getElementsByClass("PedalMark"):
         kind = getattr(mark, "pedalType", None)
         if kind is not None and getattr(kind, "name", str(kind)) != "Sustain":
             continue  # the sostenuto and soft pedals do not hold the keys' notes
         under = mark.getSpannedElements()
-        if not under:
-            continue
-        last = under[-1]
-        start = seconds(float(under[0].getOffsetInHierarchy(score)))
-        end = seconds(float(last.getOffsetInHierarchy(score)) + float(last.duration.quarterLength))
-        if end > start:
-            spans.append((round(start, 6), round(end, 6)))
+        if under:
+            marks.append((under[0], under[-1]))
+    return marks
+
+
+def _pedal_intervals(
+    marks: list[tuple[Any, Any]], played: Any, seconds: Callable[[float], float]
+) -> tuple[tuple[float, float], ...]:
+    """(start s, end s) of each sustain-pedal mark in the score as played, overlapping ones
+    merged. With the repeats expanded a note is played more than once: the k-th playing of a
+    mark's first note starts its k-th interval, the k-th playing of its last note ends it."""
+    playings: dict[int, list[tuple[float, float]]] = {}
+    for element in played.recurse().notes:
+        source = element.derivation.rootDerivation or element  # the score's own note
+        onset = float(element.getOffsetInHierarchy(played))
+        span = (onset, onset + float(element.duration.quarterLength))
+        playings.setdefault(id(source), []).append(span)
+    spans: list[tuple[float, float]] = []
+    for first, last in marks:
+        starts = sorted(playings.get(id(first), []))
+        ends = sorted(playings.get(id(last), []))
+        for (onset, _), (_, end) in zip(starts, ends, strict=False):
+            start_s, end_s = seconds(onset), seconds(end)
+            if end_s > start_s:
+                spans.append((round(start_s, 6), round(end_s, 6)))
     merged: list[list[float]] = []
     for start, end in sorted(spans):
         if merged and start <= merged[-1][1]:
