@@ -257,5 +257,5 @@ def _finger_numbers(element: Any) -> list[int | None]:
             continue
         text = str(mark.fingerNumber).strip()
         first = text[:1]  # "4-3", a substitution: the finger that strikes
-        numbers.append(int(first) if first in "12345" and first else None)
+        numbers.append(int(first) if first and first in "12345" else None)
     return numbers
