@@ -33,10 +33,10 @@ from typing import Literal
 import mido
 
 from pianist.files import write_bytes_atomic
-from pianist.music.errors import MidiFileError, OutOfRangeError, one_line
+from pianist.music.errors import MidiFileError, one_line
 from pianist.music.fileio import require_file
 from pianist.music.notes import Note, Song
-from pianist.music.pitch import HIGHEST_PITCH, LOWEST_PITCH
+from pianist.music.pitch import HIGHEST_PITCH, LOWEST_PITCH, out_of_range_error
 
 #: The General MIDI percussion channel (channel 10, counted from 0): its notes are drums.
 PERCUSSION_CHANNEL = 9
@@ -185,12 +185,7 @@ def read_midi(path: str | os.PathLike[str], *, out_of_range: OutOfRange = "error
     finished = [n for n in finished if n[2] > n[1]]
     outside = [n for n in finished if not LOWEST_PITCH <= n[0] <= HIGHEST_PITCH]
     if outside and out_of_range == "error":
-        pitches = [n[0] for n in outside]
-        raise OutOfRangeError(
-            f"{path}: {len(outside)} note(s) outside the piano's range MIDI "
-            f"{LOWEST_PITCH}..{HIGHEST_PITCH} (pitches {min(pitches)}..{max(pitches)}); "
-            "leave them out with out_of_range='drop' (pianist play --out-of-range drop)"
-        )
+        raise out_of_range_error(path, [n[0] for n in outside])
     notes = [
         Note(pitch, onset, offset, velocity)
         for pitch, onset, offset, velocity in finished

@@ -32,11 +32,11 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any, Literal
 
-from pianist.music.errors import MusicError, OutOfRangeError, one_line
+from pianist.music.errors import MusicError, one_line
 from pianist.music.fileio import require_file
 from pianist.music.midi import MAX_DURATION_S
 from pianist.music.notes import LEFT, RIGHT, Note, Song
-from pianist.music.pitch import HIGHEST_PITCH, LOWEST_PITCH
+from pianist.music.pitch import HIGHEST_PITCH, LOWEST_PITCH, out_of_range_error
 
 #: File suffixes read as MusicXML (``.mxl`` is the compressed form).
 MUSICXML_SUFFIXES = (".musicxml", ".mxl", ".xml")
@@ -152,12 +152,7 @@ def read_musicxml(
         raw.extend(_part_notes(part, hand, seconds))
     outside = [r for r in raw if not LOWEST_PITCH <= r[0] <= HIGHEST_PITCH]
     if outside and out_of_range == "error":
-        pitches = [r[0] for r in outside]
-        raise OutOfRangeError(
-            f"{path}: {len(outside)} note(s) outside the piano's range MIDI "
-            f"{LOWEST_PITCH}..{HIGHEST_PITCH} (pitches {min(pitches)}..{max(pitches)}); "
-            "leave them out with out_of_range='drop' (pianist play --out-of-range drop)"
-        )
+        raise out_of_range_error(path, [r[0] for r in outside])
     notes = merge_voices(r for r in raw if LOWEST_PITCH <= r[0] <= HIGHEST_PITCH)
     if not notes:
         raise MusicError(f"{path}: no notes" + (" in the piano's range" if outside else ""))

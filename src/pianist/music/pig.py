@@ -20,10 +20,16 @@ from pathlib import Path
 from typing import Literal
 
 from pianist.files import write_text_atomic
-from pianist.music.errors import MusicError, OutOfRangeError, PigFormatError, one_line
+from pianist.music.errors import MusicError, PigFormatError, one_line
 from pianist.music.fileio import require_file
 from pianist.music.notes import LEFT, RIGHT, Note, Song
-from pianist.music.pitch import HIGHEST_PITCH, LOWEST_PITCH, name_to_pitch, pitch_to_name
+from pianist.music.pitch import (
+    HIGHEST_PITCH,
+    LOWEST_PITCH,
+    name_to_pitch,
+    out_of_range_error,
+    pitch_to_name,
+)
 
 PIG_HEADER = "//Version: PianoFingering_v170101"
 _NUM_FIELDS = 8
@@ -105,11 +111,7 @@ def read_pig(
         # the hand of unlabelled notes.
         notes.append(Note(pitch, onset, offset, velocity, finger, hand if finger is None else None))
     if outside and out_of_range == "error":
-        raise OutOfRangeError(
-            f"{path}: {len(outside)} note(s) outside the piano's range MIDI "
-            f"{LOWEST_PITCH}..{HIGHEST_PITCH} (pitches {min(outside)}..{max(outside)}); "
-            "leave them out with out_of_range='drop' (pianist play --out-of-range drop)"
-        )
+        raise out_of_range_error(path, outside)
     if not notes:
         raise PigFormatError(f"{path}: no notes")
     return Song(notes=tuple(notes), name=path.stem)

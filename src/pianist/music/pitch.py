@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import os
 import re
+from collections.abc import Sequence
 
-from pianist.music.errors import MusicError
+from pianist.music.errors import MusicError, OutOfRangeError
 
 #: Lowest and highest MIDI pitch of the 88-key piano (A0 and C8).
 LOWEST_PITCH = 21
@@ -15,6 +17,16 @@ _SHARP_NAMES = ("C", "C#", "D", "D#", "E", "F", "F#", "G", "G#", "A", "A#", "B")
 _STEP = {"C": 0, "D": 2, "E": 4, "F": 5, "G": 7, "A": 9, "B": 11}
 # Letter, any run of sharps or flats, then an octave that may be negative (C-1 = MIDI 0).
 _NAME_RE = re.compile(r"^([A-Ga-g])([#b]*)(-?\d+)$")
+
+
+def out_of_range_error(path: str | os.PathLike[str], pitches: Sequence[int]) -> OutOfRangeError:
+    """The error a song file's reader raises for its notes outside the piano's keys (the
+    pitches of those notes), naming how to leave them out instead."""
+    return OutOfRangeError(
+        f"{path}: {len(pitches)} note(s) outside the piano's range MIDI "
+        f"{LOWEST_PITCH}..{HIGHEST_PITCH} (pitches {min(pitches)}..{max(pitches)}); "
+        "leave them out with out_of_range='drop' (pianist play --out-of-range drop)"
+    )
 
 
 def pitch_to_name(pitch: int) -> str:
