@@ -99,6 +99,34 @@ def test_a_grand_staff_gives_hands_fingers_and_times(tmp_path: Path) -> None:
     assert [n.hand for n in played.notes] == [n.hand for n in song.notes]
 
 
+def test_ties_join_pitch_by_pitch(tmp_path: Path) -> None:
+    rest = "<note><rest/><duration>1</duration><staff>1</staff></note>"
+    measure = (
+        # The chord C4 G4 with only G4 tied into the next chord G4 B4: C4 ends, G4 goes on.
+        _note("C", 4, 1)
+        + _note("G", 4, 1, chord=True, tie="start")
+        + _note("G", 4, 1, tie="stop")
+        + _note("B", 4, 1, chord=True)
+        # E5 tied to the next E5, whose end of the tie the file forgets: still one note.
+        + _note("E", 5, 1, tie="start")
+        + _note("E", 5, 1)
+        + "<backup><duration>4</duration></backup>"
+        # A3 "tied" across a rest to the next A3: two notes, a tie does not bridge silence.
+        + _note("A", 3, 1, staff=2, tie="start")
+        + rest.replace("<staff>1</staff>", "<staff>2</staff>")
+        + _note("A", 3, 2, staff=2, tie="stop")
+    )
+    song = read_musicxml(_write(tmp_path / "ties.musicxml", _score(measure)))
+    assert [(n.pitch, n.onset_s, n.offset_s) for n in song.notes] == [
+        (57, 0.0, 1.0),
+        (60, 0.0, 1.0),
+        (67, 0.0, 2.0),
+        (71, 1.0, 2.0),
+        (57, 2.0, 4.0),
+        (76, 2.0, 4.0),
+    ]
+
+
 def test_a_substitution_keeps_its_first_finger_and_other_marks_are_no_fingers() -> None:
     from music21 import articulations, note
 
