@@ -178,6 +178,28 @@ def test_a_sustain_pedal_mark_holds_from_its_first_note_to_the_end_of_its_last(
     assert [n.pitch for n in song.notes if n.hand == "left"] == [48, 55]
 
 
+def test_a_pedal_change_inside_a_mark_lifts_the_pedal_there(tmp_path: Path) -> None:
+    from pianist.music.musicxml import PEDAL_CHANGE_S
+
+    # Left hand: three quarters under one mark, the pedal changed at the third (2 s), then a
+    # fourth after the mark.
+    measure = "".join(_note(step, 5, 1) for step in "CDEF")
+    measure += "<backup><duration>4</duration></backup>" + _pedal("start")
+    measure += _note("C", 3, 1, staff=2) + _note("E", 3, 1, staff=2)
+    measure += _pedal("change") + _note("G", 3, 1, staff=2) + _pedal("stop")
+    measure += _note("C", 4, 1, staff=2)
+    song = read_musicxml(_write(tmp_path / "change.musicxml", _score(measure)))
+    assert song.sustain == ((0.0, 2.0), (2.0 + PEDAL_CHANGE_S, 3.0))
+    # In a repeated part the change lifts the pedal each time it is played.
+    text = _one_staff_score("C", "D|forward", "E|backward", "F", pedalled=3)
+    whole = _note("E", 4, 4).replace("<staff>1</staff>", "")
+    change = _pedal("change").replace("<staff>2</staff>", "")
+    halves = (_note("E", 4, 2) + change + _note("G", 4, 2)).replace("<staff>1</staff>", "")
+    repeated = read_musicxml(_write(tmp_path / "repeated.musicxml", text.replace(whole, halves)))
+    lift = 10.0 + PEDAL_CHANGE_S, 18.0 + PEDAL_CHANGE_S
+    assert repeated.sustain == ((8.0, 10.0), (lift[0], 12.0), (16.0, 18.0), (lift[1], 20.0))
+
+
 def _one_staff_score(*measures: str, pedalled: int | None = None) -> str:
     """A one-part, one-staff score of whole notes, one per measure, given as "C",
     "D|forward", "E|backward" (the barline's repeat sign); measure ``pedalled`` (from 1)

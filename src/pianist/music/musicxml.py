@@ -11,7 +11,8 @@ score is read. Reading conventions (a caller should know these):
 - Times come from the score's metronome marks (quarter = 120 before the first one, music21's
   default). Velocities from the score's dynamics where music21 gives them, else 80.
 - Sustain-pedal marks are the song's pedal intervals, each from the onset of the first note
-  under the mark to the end of the last (a pedal change inside a mark is not read as a lift).
+  under the mark to the end of the last; a pedal change inside a mark (``<pedal
+  type="change">``) lifts the pedal for :data:`PEDAL_CHANGE_S` there.
 - The piano has one key per pitch: a unison between voices or staves is one note (the longest),
   and a note struck while its key still sounds ends the earlier one.
 - Hands: a score of exactly two parts (a piano's grand staff, or any two staves) gives the upper
@@ -31,7 +32,7 @@ import os
 import warnings
 from collections.abc import Callable, Iterable
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, Literal, NamedTuple
 
 from pianist.music.errors import MusicError, one_line
 from pianist.music.fileio import require_file
@@ -43,6 +44,21 @@ from pianist.music.pitch import HIGHEST_PITCH, LOWEST_PITCH, out_of_range_error
 MUSICXML_SUFFIXES = (".musicxml", ".mxl", ".xml")
 #: Velocity of a note whose score gives none.
 DEFAULT_VELOCITY = 80
+
+#: How long the pedal is up at a pedal change inside a mark, in seconds: a quick change of a
+#: pianist's foot. (The goal's 20 Hz frames show it as one frame up only where the change
+#: falls on a frame's time; the score's audio always has it.)
+PEDAL_CHANGE_S = 0.1
+
+
+class PedalMark(NamedTuple):
+    """A sustain-pedal mark as music21 parses it: its first and last note or chord, and the
+    pedal changes (music21 ``PedalBounce`` objects) inside it."""
+
+    first: Any
+    last: Any
+    changes: list[Any]
+
 
 #: One note as read, before the voices are merged: (pitch, onset s, offset s, velocity, hand,
 #: finger 0-9 or None).
@@ -167,37 +183,48 @@ def read_musicxml(
     return Song(notes=tuple(notes), sustain=sustain, name=path.stem)
 
 
-def _sustain_marks(score: Any) -> list[tuple[Any, Any]]:
-    """(first, last) note or chord under each of the score's sustain-pedal marks."""
+def _sustain_marks(score: Any) -> list[PedalMark]:
+    """The score's sustain-pedal marks: the first and last note or chord under each, and the
+    pedal changes ("change": up and down again at once) inside it."""
     marks = []
     for mark in score.recurse().getElementsByClass("PedalMark"):
         kind = getattr(mark, "pedalType", None)
         if kind is not None and getattr(kind, "name", str(kind)) != "Sustain":
             continue  # the sostenuto and soft pedals do not hold the keys' notes
         under = mark.getSpannedElements()
-        if under:
-            marks.append((under[0], under[-1]))
+        notes = [e for e in under if hasattr(e, "pitches")]  # not the gaps and changes
+        changes = [e for e in under if type(e).__name__ == "PedalBounce"]
+        if notes:
+            marks.append(PedalMark(notes[0], notes[-1], changes))
     return marks
 
 
 def _pedal_intervals(
-    marks: list[tuple[Any, Any]], played: Any, seconds: Callable[[float], float]
+    marks: list[PedalMark], played: Any, seconds: Callable[[float], float]
 ) -> tuple[tuple[float, float], ...]:
     """(start s, end s) of each sustain-pedal mark in the score as played, overlapping ones
     merged. With the repeats expanded a note is played more than once: the k-th playing of a
-    mark's first note starts its k-th interval, the k-th playing of its last note ends it."""
+    mark's first note starts its k-th interval, the k-th playing of its last note ends it.
+    A pedal change inside an interval lifts the pedal there for :data:`PEDAL_CHANGE_S`."""
     playings: dict[int, list[tuple[float, float]]] = {}
-    for element in played.recurse().notes:
-        source = element.derivation.rootDerivation or element  # the score's own note
+    for element in played.recurse().getElementsByClass(("GeneralNote", "PedalBounce")):
+        source = element.derivation.rootDerivation or element  # the score's own element
         onset = float(element.getOffsetInHierarchy(played))
         span = (onset, onset + float(element.duration.quarterLength))
         playings.setdefault(id(source), []).append(span)
     spans: list[tuple[float, float]] = []
-    for first, last in marks:
-        starts = sorted(playings.get(id(first), []))
-        ends = sorted(playings.get(id(last), []))
+    for mark in marks:
+        starts = sorted(playings.get(id(mark.first), []))
+        ends = sorted(playings.get(id(mark.last), []))
+        lifts = sorted(
+            seconds(onset) for change in mark.changes for onset, _ in playings.get(id(change), [])
+        )
         for (onset, _), (_, end) in zip(starts, ends, strict=False):
             start_s, end_s = seconds(onset), seconds(end)
+            for lift_s in lifts:
+                if start_s < lift_s < end_s:
+                    spans.append((round(start_s, 6), round(lift_s, 6)))
+                    start_s = min(lift_s + PEDAL_CHANGE_S, end_s)
             if end_s > start_s:
                 spans.append((round(start_s, 6), round(end_s, 6)))
     merged: list[list[float]] = []
