@@ -202,8 +202,9 @@ def test_a_pedal_change_inside_a_mark_lifts_the_pedal_there(tmp_path: Path) -> N
 
 def _one_staff_score(*measures: str, pedalled: int | None = None) -> str:
     """A one-part, one-staff score of whole notes, one per measure, given as "C",
-    "D|forward", "E|backward" (the barline's repeat sign); measure ``pedalled`` (from 1)
-    under a sustain-pedal mark."""
+    "D|forward", "E|backward" (the barline's repeat sign), "F|backward|1" or "G||2" (under
+    the first or second ending's bracket); measure ``pedalled`` (from 1) under a
+    sustain-pedal mark."""
     attributes = (
         "<attributes><divisions>1</divisions><time><beats>4</beats><beat-type>4</beat-type>"
         '</time></attributes><sound tempo="60"/>'
@@ -214,10 +215,15 @@ def _one_staff_score(*measures: str, pedalled: int | None = None) -> str:
     }
     body = ""
     for number, spec in enumerate(measures, start=1):
-        step, _, repeat = spec.partition("|")
+        step, repeat, ending = (spec.split("|") + ["", ""])[:3]
         note = _note(step, 4, 4).replace("<staff>1</staff>", "")
         left = barlines[repeat] if repeat == "forward" else ""
         right = barlines[repeat] if repeat == "backward" else ""
+        if ending:  # the bracket's ends go first in their barlines
+            start = f'<barline location="left"><ending number="{ending}" type="start"/>'
+            left = start + (left.replace('<barline location="left">', "") or "</barline>")
+            stop = f'<barline location="right"><ending number="{ending}" type="stop"/>'
+            right = stop + (right.replace('<barline location="right">', "") or "</barline>")
         first = attributes if number == 1 else ""
         if number == pedalled:
             note = _pedal("start").replace("<staff>2</staff>", "") + note
@@ -253,6 +259,42 @@ def test_repeats_are_played_as_a_performer_plays_them(tmp_path: Path) -> None:
     bad = _write(tmp_path / "bad.musicxml", _one_staff_score("C", "D|forward", "E|forward", "F"))
     with pytest.warns(UserWarning, match="could not be expanded"):
         assert [n.pitch for n in read_musicxml(bad).notes] == [60, 62, 64, 65]
+    # Backward signs without forward ones go back to just after the previous backward sign
+    # (music21 alone goes back to the start each time: C 8 times here), past its endings.
+    implied = ("C|backward", "D", "E|backward", "F|backward")
+    sections = _write(tmp_path / "sections.musicxml", _one_staff_score(*implied))
+    assert [n.pitch for n in read_musicxml(sections).notes] == [60, 60, 62, 64, 62, 64, 65, 65]
+    endings = ("C|backward", "D", "E|backward|1", "F||2", "G|backward")
+    with_endings = _write(tmp_path / "endings.musicxml", _one_staff_score(*endings))
+    assert [n.pitch for n in read_musicxml(with_endings).notes] == [
+        *(60, 60),
+        *(62, 64, 62, 65),  # the first ending, then the second
+        *(67, 67),  # back to just after the second ending, not into it
+    ]
+
+
+def test_an_expansion_that_loops_is_played_once_as_written(tmp_path: Path, monkeypatch) -> None:
+    import copy
+
+    from music21 import stream
+
+    def looping(score: stream.Score) -> stream.Score:
+        """Five playings of the first measure, as music21 makes of some files of several
+        movements (going back to the first movement's start from each later one)."""
+        first = score.parts[0].getElementsByClass("Measure")[0]
+        part = stream.Part()
+        for k in range(5):
+            playing = copy.deepcopy(first)
+            playing.derivation.origin = first
+            part.insert(4.0 * k, playing)
+        played = stream.Score()
+        played.insert(0, part)
+        return played
+
+    monkeypatch.setattr(stream.Score, "expandRepeats", looping)
+    path = _write(tmp_path / "looping.musicxml", _one_staff_score("C", "D"))
+    with pytest.warns(UserWarning, match="would play a measure 5 times"):
+        assert [n.pitch for n in read_musicxml(path).notes] == [60, 62]
 
 
 def test_voices_merge_on_one_keyboard() -> None:

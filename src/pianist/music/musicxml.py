@@ -6,8 +6,10 @@ score is read. Reading conventions (a caller should know these):
 - Every part's notes and chords are read; tied notes are joined, pitch by pitch (in a chord
   only its tied pitches go on; a tie does not bridge a rest); grace notes (no time of their
   own) are left out. Repeats are played as a performer plays them (music21 expands repeat
-  signs, first and second endings, da capo and dal segno); a score whose repeats music21
-  cannot expand is played once as written, with a warning.
+  signs, first and second endings, da capo and dal segno; an end-repeat sign without a start
+  goes back to just after the previous one); a score whose repeats music21 cannot expand, or
+  expands into a measure played more than :data:`MAX_PLAYINGS` times, is played once as
+  written, with a warning.
 - Times come from the score's metronome marks (quarter = 120 before the first one, music21's
   default). Velocities from the score's dynamics where music21 gives them, else 80.
 - Sustain-pedal marks are the song's pedal intervals, each from the onset of the first note
@@ -30,6 +32,7 @@ from __future__ import annotations
 
 import os
 import warnings
+from collections import Counter
 from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any, Literal, NamedTuple
@@ -44,6 +47,10 @@ from pianist.music.pitch import HIGHEST_PITCH, LOWEST_PITCH, out_of_range_error
 MUSICXML_SUFFIXES = (".musicxml", ".mxl", ".xml")
 #: Velocity of a note whose score gives none.
 DEFAULT_VELOCITY = 80
+
+#: The most times a performer plays one measure: a repeated passage inside a part played
+#: again, with its repeat, after a da capo. An expansion of the repeats past it is wrong.
+MAX_PLAYINGS = 4
 
 #: How long the pedal is up at a pedal change inside a mark, in seconds: a quick change of a
 #: pianist's foot. (The goal's 20 Hz frames show it as one frame up only where the change
@@ -154,7 +161,7 @@ def read_musicxml(
     pedals = _sustain_marks(score)  # before expanding: the marks point at the score's notes
     if expand_repeats:
         try:
-            score = score.expandRepeats()
+            score = _expand_repeats(score)
         except Exception as exc:  # music21's expander refuses repeats it cannot make sense of
             warnings.warn(
                 f"{path}: its repeats could not be expanded ({one_line(exc)}); played once "
@@ -181,6 +188,55 @@ def read_musicxml(
         )
     sustain = _pedal_intervals(pedals, score, seconds)
     return Song(notes=tuple(notes), sustain=sustain, name=path.stem)
+
+
+def _expand_repeats(score: Any) -> Any:
+    """The score as a performer plays it, its repeats expanded by music21, after the repeat
+    starts that the notation leaves implied are written in (:func:`_imply_repeat_starts`).
+
+    Raises:
+        ValueError: the expansion plays a measure more than :data:`MAX_PLAYINGS` times, as
+            music21 does where it goes back to a first movement's start from a later one.
+    """
+    _imply_repeat_starts(score)
+    played = score.expandRepeats()
+    parts = list(getattr(played, "parts", ())) or [played]
+    measures = parts[0].getElementsByClass("Measure")
+    counts = Counter(id(m.derivation.rootDerivation or m) for m in measures)
+    most = max(counts.values(), default=0)
+    if most > MAX_PLAYINGS:
+        raise ValueError(f"they would play a measure {most} times")
+    return played
+
+
+def _imply_repeat_starts(score: Any) -> None:
+    """Write in, part by part, the start-repeat sign that an end-repeat sign without one
+    implies: a performer goes back to just after the previous end-repeat (past that repeat's
+    endings), not to the piece's start as music21 does (which plays the first section once
+    more at every later repeat)."""
+    from music21 import bar
+
+    for part in list(getattr(score, "parts", ())) or [score]:
+        measures = list(part.getElementsByClass("Measure"))
+        back_to: int | None = None  # where an unopened repeat goes back to; None: the start
+        opened = False
+        for index, measure in enumerate(measures):
+            left, right = measure.leftBarline, measure.rightBarline
+            if isinstance(left, bar.Repeat) and left.direction == "start":
+                opened = True
+            if not (isinstance(right, bar.Repeat) and right.direction == "end"):
+                continue
+            if not opened and back_to is not None and back_to <= index:
+                measures[back_to].leftBarline = bar.Repeat(direction="start")
+            opened = False
+            back_to = index + 1
+            while back_to < len(measures) and _in_an_ending(measures[back_to]):
+                back_to += 1  # the second ending is played once, after the repeat
+
+
+def _in_an_ending(measure: Any) -> bool:
+    """Whether a measure lies under a first, second, ... ending's bracket."""
+    return any(type(s).__name__ == "RepeatBracket" for s in measure.getSpannerSites())
 
 
 def _sustain_marks(score: Any) -> list[PedalMark]:
