@@ -322,6 +322,10 @@ def test_bad_scores_are_clear_errors(tmp_path: Path, monkeypatch) -> None:
     assert "not found" in message(tmp_path / "missing.mxl")
     rest = "<note><rest/><duration>4</duration><staff>1</staff></note>"
     assert "no notes" in message(_write(tmp_path / "rests.musicxml", _score(rest)))
+    drum = "<note><unpitched><display-step>C</display-step><display-octave>5</display-octave>"
+    drum += "</unpitched><duration>4</duration><staff>1</staff></note>"
+    drums = message(_write(tmp_path / "drums.musicxml", _score(drum)))
+    assert "no notes (only 1 unpitched percussion note(s))" in drums
     high = _note("B", 8, 1) + _note("C", 4, 1)  # B8 is MIDI 119, above the top C (108)
     path = _write(tmp_path / "high.musicxml", _score(high))
     assert "--out-of-range drop" in message(path, OutOfRangeError)

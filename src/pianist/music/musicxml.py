@@ -179,7 +179,12 @@ def read_musicxml(
         raise out_of_range_error(path, [r[0] for r in outside])
     notes = merge_voices(r for r in raw if LOWEST_PITCH <= r[0] <= HIGHEST_PITCH)
     if not notes:
-        raise MusicError(f"{path}: no notes" + (" in the piano's range" if outside else ""))
+        unpitched = len(score.recurse().getElementsByClass("Unpitched"))
+        raise MusicError(
+            f"{path}: no notes"
+            + (" in the piano's range" if outside else "")
+            + (f" (only {unpitched} unpitched percussion note(s))" if unpitched else "")
+        )
     end = max(n.offset_s for n in notes)
     if end > MAX_DURATION_S:
         raise MusicError(
