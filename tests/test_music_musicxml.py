@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from pianist.cli import main
-from pianist.music import MusicError, OutOfRangeError, load_song
+from pianist.music import MusicError, OutOfRangeError, load_song, musicxml
 from pianist.music.musicxml import merge_voices, read_musicxml
 
 
@@ -97,6 +97,16 @@ def test_a_grand_staff_gives_hands_fingers_and_times(tmp_path: Path) -> None:
     assert played.has_full_fingering
     assert [(n.pitch, n.finger) for n in played.notes][1:5] == [(76, 2), (60, 0), (64, 2), (67, 4)]
     assert [n.hand for n in played.notes] == [n.hand for n in song.notes]
+
+
+def test_a_metronome_mark_without_a_number_keeps_the_tempo(tmp_path: Path) -> None:
+    unnumbered = (
+        "<direction><direction-type><metronome><beat-unit>quarter</beat-unit>"
+        "<per-minute></per-minute></metronome></direction-type></direction>"
+    )
+    measure = _note("C", 4, 2) + unnumbered + _note("D", 4, 2)
+    song = read_musicxml(_write(tmp_path / "tempo.musicxml", _score(measure)))
+    assert [(n.onset_s, n.offset_s) for n in song.notes] == [(0.0, 2.0), (2.0, 4.0)]  # 60 on
 
 
 def test_ties_join_pitch_by_pitch(tmp_path: Path) -> None:
@@ -330,6 +340,10 @@ def test_bad_scores_are_clear_errors(tmp_path: Path, monkeypatch) -> None:
     path = _write(tmp_path / "high.musicxml", _score(high))
     assert "--out-of-range drop" in message(path, OutOfRangeError)
     assert [n.pitch for n in load_song(path, out_of_range="drop").notes] == [60]
+    # A failure inside music21's parsed score is named as the file's, not a traceback.
+    with monkeypatch.context() as patched:
+        patched.setattr(musicxml, "_finger_numbers", lambda element: element.no_such_field)
+        assert "a score this reader cannot follow (AttributeError" in message(path)
     monkeypatch.setitem(sys.modules, "music21", None)  # as if it were not installed
     assert "pip install 'pianist[musicxml]'" in message(tmp_path / "rests.musicxml")
 

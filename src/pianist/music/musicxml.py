@@ -11,7 +11,8 @@ score is read. Reading conventions (a caller should know these):
   expands into a measure played more than :data:`MAX_PLAYINGS` times, is played once as
   written, with a warning.
 - Times come from the score's metronome marks (quarter = 120 before the first one, music21's
-  default). Velocities from the score's dynamics where music21 gives them, else 80.
+  default; a mark without a number keeps the tempo before it). Velocities from the score's
+  dynamics where music21 gives them, else 80.
 - Sustain-pedal marks are the song's pedal intervals, each from the onset of the first note
   under the mark to the end of the last; a pedal change inside a mark (``<pedal
   type="change">``) lifts the pedal for :data:`PEDAL_CHANGE_S` there.
@@ -33,7 +34,8 @@ from __future__ import annotations
 import os
 import warnings
 from collections import Counter
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, Literal, NamedTuple
 
@@ -45,6 +47,8 @@ from pianist.music.pitch import HIGHEST_PITCH, LOWEST_PITCH, out_of_range_error
 
 #: File suffixes read as MusicXML (``.mxl`` is the compressed form).
 MUSICXML_SUFFIXES = (".musicxml", ".mxl", ".xml")
+#: Quarter notes per minute before a score's first metronome mark (music21's default).
+DEFAULT_QUARTER_BPM = 120.0
 #: Velocity of a note whose score gives none.
 DEFAULT_VELOCITY = 80
 
@@ -77,10 +81,14 @@ def seconds_of_offsets(score: Any, quarter_bpm: float | None = None) -> Callable
     through the score's metronome marks, or at ``quarter_bpm`` throughout when given."""
     if quarter_bpm is not None:
         return lambda ql: float(ql) * 60.0 / quarter_bpm
-    bounds = [
-        (float(start), float(end), mark.getQuarterBPM())
-        for start, end, mark in score.metronomeMarkBoundaries()
-    ]
+    bounds: list[tuple[float, float, float]] = []
+    before = DEFAULT_QUARTER_BPM
+    for start, end, mark in score.metronomeMarkBoundaries():
+        bpm = mark.getQuarterBPM()
+        if bpm is None or not bpm > 0:  # a mark without a number: the tempo goes on
+            bpm = before
+        bounds.append((float(start), float(end), float(bpm)))
+        before = bpm
 
     def seconds(ql: float) -> float:
         total = 0.0
@@ -140,8 +148,9 @@ def read_musicxml(
         expand_repeats: play the repeats (False: once through, as written).
 
     Raises:
-        MusicError: music21 missing; a missing, unreadable or non-MusicXML file; no notes; a
-            timeline longer than one hour.
+        MusicError: music21 missing; a missing, unreadable or non-MusicXML file; a score
+            music21 parses into a shape this reader cannot follow; no notes; a timeline
+            longer than one hour.
         OutOfRangeError: notes outside the piano's keys with ``out_of_range="error"``.
     """
     if out_of_range not in ("error", "drop"):
@@ -158,7 +167,8 @@ def read_musicxml(
         score = converter.parse(str(path), format="musicxml", forceSource=True)
     except Exception as exc:  # music21 raises many types for a file it cannot read
         raise MusicError(f"{path}: not a readable MusicXML score ({one_line(exc)})") from None
-    pedals = _sustain_marks(score)  # before expanding: the marks point at the score's notes
+    with _as_music_error(path):
+        pedals = _sustain_marks(score)  # before expanding: the marks point at the score's notes
     if expand_repeats:
         try:
             score = _expand_repeats(score)
@@ -169,11 +179,12 @@ def read_musicxml(
                 stacklevel=2,
             )
     parts = list(getattr(score, "parts", ())) or [score]
-    seconds = seconds_of_offsets(score)
-    hands = _hands_of_parts(parts)
     raw: list[RawNote] = []
-    for part, hand in zip(parts, hands, strict=True):
-        raw.extend(_part_notes(part, hand, seconds))
+    with _as_music_error(path):
+        seconds = seconds_of_offsets(score)
+        for part, hand in zip(parts, _hands_of_parts(parts), strict=True):
+            raw.extend(_part_notes(part, hand, seconds))
+        sustain = _pedal_intervals(pedals, score, seconds)
     outside = [r for r in raw if not LOWEST_PITCH <= r[0] <= HIGHEST_PITCH]
     if outside and out_of_range == "error":
         raise out_of_range_error(path, [r[0] for r in outside])
@@ -191,8 +202,21 @@ def read_musicxml(
             f"{path}: timeline longer than {MAX_DURATION_S / 3600:g} hour (reaches {end:.0f} s); "
             "refusing an absurd length"
         )
-    sustain = _pedal_intervals(pedals, score, seconds)
     return Song(notes=tuple(notes), sustain=sustain, name=path.stem)
+
+
+@contextmanager
+def _as_music_error(path: Path) -> Iterator[None]:
+    """Turn a failure inside music21's parsed score into a :class:`MusicError` naming the
+    file: music21 parses many files into shapes that no reader of it can foresee."""
+    try:
+        yield
+    except MusicError:
+        raise
+    except Exception as exc:
+        raise MusicError(
+            f"{path}: a score this reader cannot follow ({type(exc).__name__}: {one_line(exc)})"
+        ) from exc
 
 
 def _expand_repeats(score: Any) -> Any:
