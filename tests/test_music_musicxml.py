@@ -109,7 +109,7 @@ def test_a_metronome_mark_without_a_number_keeps_the_tempo(tmp_path: Path) -> No
     assert [(n.onset_s, n.offset_s) for n in song.notes] == [(0.0, 2.0), (2.0, 4.0)]  # 60 on
 
 
-def test_ties_join_pitch_by_pitch(tmp_path: Path) -> None:
+def test_ties_join_voice_by_voice_and_pitch_by_pitch(tmp_path: Path) -> None:
     rest = "<note><rest/><duration>1</duration><staff>1</staff></note>"
     measure = (
         # The chord C4 G4 with only G4 tied into the next chord G4 B4: C4 ends, G4 goes on.
@@ -135,6 +135,17 @@ def test_ties_join_pitch_by_pitch(tmp_path: Path) -> None:
         (57, 2.0, 4.0),
         (76, 2.0, 4.0),
     ]
+
+    # Two voices of one staff tie the same pitch with different lengths: each tie is its
+    # voice's, and the unison is the longer note (E4 for three beats, not cut at beat 1).
+    def in_voice(number: int, text: str) -> str:
+        return text.replace("<staff>", f"<voice>{number}</voice><staff>")
+
+    voices = in_voice(1, _note("E", 4, 1, tie="start") + _note("E", 4, 1, tie="stop"))
+    voices += "<backup><duration>2</duration></backup>"
+    voices += in_voice(2, _note("E", 4, 2, tie="start") + _note("E", 4, 1, tie="stop"))
+    two = read_musicxml(_write(tmp_path / "voices.musicxml", _score(voices)))
+    assert [(n.pitch, n.onset_s, n.offset_s) for n in two.notes] == [(64, 0.0, 3.0)]
 
 
 def test_a_substitution_keeps_its_first_finger_and_other_marks_are_no_fingers() -> None:

@@ -3,13 +3,13 @@
 music21 parses the score (``pip install 'pianist[musicxml]'``); it is imported only when a
 score is read. Reading conventions (a caller should know these):
 
-- Every part's notes and chords are read; tied notes are joined, pitch by pitch (in a chord
-  only its tied pitches go on; a tie does not bridge a rest); grace notes (no time of their
-  own) are left out. Repeats are played as a performer plays them (music21 expands repeat
-  signs, first and second endings, da capo and dal segno; an end-repeat sign without a start
-  goes back to just after the previous one); a score whose repeats music21 cannot expand, or
-  expands into a measure played more than :data:`MAX_PLAYINGS` times, is played once as
-  written, with a warning.
+- Every part's notes and chords are read; tied notes are joined, voice by voice and pitch by
+  pitch (in a chord only its tied pitches go on; a tie does not bridge a rest); grace notes
+  (no time of their own) are left out. Repeats are played as a performer plays them (music21
+  expands repeat signs, first and second endings, da capo and dal segno; an end-repeat sign
+  without a start goes back to just after the previous one); a score whose repeats music21
+  cannot expand, or expands into a measure played more than :data:`MAX_PLAYINGS` times, is
+  played once as written, with a warning.
 - Times come from the score's metronome marks (quarter = 120 before the first one, music21's
   default; a mark without a number keeps the tempo before it). Velocities from the score's
   dynamics where music21 gives them, else 80.
@@ -337,11 +337,13 @@ def _hands_of_parts(parts: list[Any]) -> tuple[str | None, ...]:
 def _part_notes(part: Any, hand: str | None, seconds: Callable[[float], float]) -> list[RawNote]:
     """The notes of one part (a staff), ties joined, grace notes left out.
 
-    Ties are joined here, pitch by pitch, in one pass over the part's notes in time order:
-    music21's ``stripTies`` does the same but copies the part and searches its spanners for
-    every note (14 s per part of a Beethoven quartet movement, against milliseconds here)."""
+    Ties are joined here, voice by voice and pitch by pitch, in one pass over the part's notes
+    in time order: music21's ``stripTies`` copies the part and searches its spanners for every
+    note (14 s per part of a Beethoven quartet movement, against milliseconds here), joins a
+    chord's notes only all together, and bridges rests."""
+    voice_of = {id(e): _voice(e) for e in part.recurse().notes}
     entries: list[list[Any]] = []  # [pitch, onset ql, offset ql, velocity, finger]
-    tied: dict[int, list[Any]] = {}  # pitch -> the entry its next tied note extends
+    tied: dict[tuple[str | None, int], list[Any]] = {}  # (voice, pitch) -> the tied entry
     for element in part.flatten().notes:
         length = float(element.duration.quarterLength)
         if length <= 0:  # grace notes have no time of their own
@@ -354,13 +356,14 @@ def _part_notes(part: Any, hand: str | None, seconds: Callable[[float], float]) 
         if len(fingers) != len(pitches):
             fingers = [None] * len(pitches)
         for pitch, tie, number in zip(pitches, ties, fingers, strict=True):
-            held = tied.pop(pitch, None)
-            if held is not None and held[1] < onset <= held[2] + 1e-9:
+            key = _tied_key(tied, voice_of.get(id(element)), pitch, onset)
+            if key is not None:
                 # A tie carries the earlier note on; as in music21, the note a tie starts
                 # towards is joined even where the file forgets to mark the tie's end.
+                held = tied.pop(key)
                 held[2] = onset + length
                 if tie in ("start", "continue"):
-                    tied[pitch] = held
+                    tied[key] = held
                 continue
             finger = None
             if hand is not None and number is not None:
@@ -368,11 +371,31 @@ def _part_notes(part: Any, hand: str | None, seconds: Callable[[float], float]) 
             entry = [pitch, onset, onset + length, velocity, finger]
             entries.append(entry)
             if tie in ("start", "continue"):
-                tied[pitch] = entry
+                tied[(voice_of.get(id(element)), pitch)] = entry
     return [
         (pitch, seconds(onset), seconds(offset), velocity, hand, finger)
         for pitch, onset, offset, velocity, finger in entries
     ]
+
+
+def _voice(element: Any) -> str | None:
+    """The id of the voice a note lies in within its measure (None outside voices)."""
+    site = element.activeSite
+    return str(site.id) if type(site).__name__ == "Voice" else None
+
+
+def _tied_key(
+    tied: dict[tuple[str | None, int], list[Any]], voice: str | None, pitch: int, onset: float
+) -> tuple[str | None, int] | None:
+    """The open tie that a note of ``pitch`` at ``onset`` (quarter lengths) continues: one in
+    its own voice that ends where it starts, else one in another voice (an encoding that
+    changes voice across the tie); None if none does."""
+    candidates = [(voice, pitch)] + [k for k in tied if k[1] == pitch and k[0] != voice]
+    for key in candidates:
+        held = tied.get(key)
+        if held is not None and abs(held[2] - onset) <= 1e-9:
+            return key
+    return None
 
 
 def _ties(element: Any, count: int) -> list[str | None]:
