@@ -281,7 +281,7 @@ def test_repeats_are_played_as_a_performer_plays_them(tmp_path: Path) -> None:
     with pytest.warns(UserWarning, match="could not be expanded"):
         assert [n.pitch for n in read_musicxml(bad).notes] == [60, 62, 64, 65]
     # Backward signs without forward ones go back to just after the previous backward sign
-    # (music21 alone goes back to the start each time: C 8 times here), past its endings.
+    # (music21 alone goes back to the piece's start each time), past its endings.
     implied = ("C|backward", "D", "E|backward", "F|backward")
     sections = _write(tmp_path / "sections.musicxml", _one_staff_score(*implied))
     assert [n.pitch for n in read_musicxml(sections).notes] == [60, 60, 62, 64, 62, 64, 65, 65]
