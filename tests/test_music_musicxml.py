@@ -223,28 +223,37 @@ def test_a_pedal_change_inside_a_mark_lifts_the_pedal_there(tmp_path: Path) -> N
 
 def _one_staff_score(*measures: str, pedalled: int | None = None) -> str:
     """A one-part, one-staff score of whole notes, one per measure, given as "C",
-    "D|forward", "E|backward" (the barline's repeat sign), "F|backward|1" or "G||2" (under
-    the first or second ending's bracket); measure ``pedalled`` (from 1) under a
-    sustain-pedal mark."""
+    "D|forward", "E|backward" (the barline's repeat sign; "backward3": played 3 times),
+    "F|backward|1" or "G||2" (under the first or second ending's bracket; "" for a bracket
+    without a number) and "A|||segno", "A|||coda" (the sign) or "A|||D.C. al Fine" (words
+    after the note); measure ``pedalled`` (from 1) under a sustain-pedal mark."""
     attributes = (
         "<attributes><divisions>1</divisions><time><beats>4</beats><beat-type>4</beat-type>"
         '</time></attributes><sound tempo="60"/>'
     )
-    barlines = {
-        "forward": '<barline location="left"><repeat direction="forward"/></barline>',
-        "backward": '<barline location="right"><repeat direction="backward"/></barline>',
-    }
     body = ""
     for number, spec in enumerate(measures, start=1):
-        step, repeat, ending = (spec.split("|") + ["", ""])[:3]
+        step, repeat, ending, mark = (spec.split("|") + ["", "", ""])[:4]
         note = _note(step, 4, 4).replace("<staff>1</staff>", "")
-        left = barlines[repeat] if repeat == "forward" else ""
-        right = barlines[repeat] if repeat == "backward" else ""
+        left = (
+            '<barline location="left"><repeat direction="forward"/></barline>'
+            if repeat == "forward"
+            else ""
+        )
+        right = ""
+        if repeat.startswith("backward"):
+            times = f' times="{repeat[8:]}"' if repeat[8:] else ""
+            right = f'<barline location="right"><repeat direction="backward"{times}/></barline>'
         if ending:  # the bracket's ends go first in their barlines
-            start = f'<barline location="left"><ending number="{ending}" type="start"/>'
+            label = "" if ending == "?" else ending
+            start = f'<barline location="left"><ending number="{label}" type="start"/>'
             left = start + (left.replace('<barline location="left">', "") or "</barline>")
-            stop = f'<barline location="right"><ending number="{ending}" type="stop"/>'
+            stop = f'<barline location="right"><ending number="{label}" type="stop"/>'
             right = stop + (right.replace('<barline location="right">', "") or "</barline>")
+        if mark in ("segno", "coda"):
+            note = f"<direction><direction-type><{mark}/></direction-type></direction>" + note
+        elif mark:
+            note += f"<direction><direction-type><words>{mark}</words></direction-type></direction>"
         first = attributes if number == 1 else ""
         if number == pedalled:
             note = _pedal("start").replace("<staff>2</staff>", "") + note
@@ -255,6 +264,10 @@ def _one_staff_score(*measures: str, pedalled: int | None = None) -> str:
         '<score-part id="P1"><part-name>Piano</part-name></score-part></part-list>'
         f'<part id="P1">{body}</part></score-partwise>'
     )
+
+
+def _pitches(path: Path) -> list[int]:
+    return [n.pitch for n in read_musicxml(path).notes]
 
 
 def test_repeats_are_played_as_a_performer_plays_them(tmp_path: Path) -> None:
@@ -276,46 +289,78 @@ def test_repeats_are_played_as_a_performer_plays_them(tmp_path: Path) -> None:
     pedalled = _write(tmp_path / "pedal.musicxml", _one_staff_score(*measures, pedalled=3))
     assert read_musicxml(pedalled).sustain == ((8.0, 12.0), (16.0, 20.0))
     assert read_musicxml(pedalled, expand_repeats=False).sustain == ((8.0, 12.0),)
-    # Two forward signs and no backward one: played once as written, and said so.
+    # Two forward signs and no backward one: nothing to play again.
     bad = _write(tmp_path / "bad.musicxml", _one_staff_score("C", "D|forward", "E|forward", "F"))
-    with pytest.warns(UserWarning, match="could not be expanded"):
-        assert [n.pitch for n in read_musicxml(bad).notes] == [60, 62, 64, 65]
+    assert _pitches(bad) == [60, 62, 64, 65]
     # Backward signs without forward ones go back to just after the previous backward sign
     # (music21 alone goes back to the piece's start each time), past its endings.
     implied = ("C|backward", "D", "E|backward", "F|backward")
     sections = _write(tmp_path / "sections.musicxml", _one_staff_score(*implied))
-    assert [n.pitch for n in read_musicxml(sections).notes] == [60, 60, 62, 64, 62, 64, 65, 65]
+    assert _pitches(sections) == [60, 60, 62, 64, 62, 64, 65, 65]
     endings = ("C|backward", "D", "E|backward|1", "F||2", "G|backward")
     with_endings = _write(tmp_path / "endings.musicxml", _one_staff_score(*endings))
-    assert [n.pitch for n in read_musicxml(with_endings).notes] == [
+    assert _pitches(with_endings) == [
         *(60, 60),
         *(62, 64, 62, 65),  # the first ending, then the second
         *(67, 67),  # back to just after the second ending, not into it
     ]
 
 
-def test_an_expansion_that_loops_is_played_once_as_written(tmp_path: Path, monkeypatch) -> None:
-    import copy
+def test_endings_without_numbers_and_repeats_played_more_than_twice(tmp_path: Path) -> None:
+    # Brackets without numbers (which music21 refuses to expand) are the run's first and
+    # second endings.
+    unnumbered = ("C|forward", "D|backward|?", "E||?", "F")
+    path = _write(tmp_path / "unnumbered.musicxml", _one_staff_score(*unnumbered))
+    assert _pitches(path) == [60, 62, 60, 64, 65]
+    # A sign that says three times, and endings "1, 2" then "3".
+    thrice = _write(tmp_path / "thrice.musicxml", _one_staff_score("C|forward", "D|backward3"))
+    assert _pitches(thrice) == [60, 62] * 3
+    three = ("C|forward", "D|backward|1, 2", "E||3")
+    path = _write(tmp_path / "three.musicxml", _one_staff_score(*three))
+    assert _pitches(path) == [60, 62, 60, 62, 60, 64]
 
-    from music21 import stream
 
-    def looping(score: stream.Score) -> stream.Score:
-        """Five playings of the first measure, as music21 makes of some files of several
-        movements (going back to the first movement's start from each later one)."""
-        first = score.parts[0].getElementsByClass("Measure")[0]
-        part = stream.Part()
-        for k in range(5):
-            playing = copy.deepcopy(first)
-            playing.derivation.origin = first
-            part.insert(4.0 * k, playing)
-        played = stream.Score()
-        played.insert(0, part)
-        return played
+def test_da_capo_and_dal_segno(tmp_path: Path) -> None:
+    # A minuet and trio: the minuet repeated, the trio repeated, then the minuet again
+    # without its repeat, to the fine.
+    minuet = ("C|backward", "D|||Fine", "E|forward", "F|backward||D.C. al Fine")
+    path = _write(tmp_path / "minuet.musicxml", _one_staff_score(*minuet))
+    assert _pitches(path) == [60, 60, 62, 64, 65, 64, 65, 60, 62]
+    # Dal segno al coda: back to the segno, from the to-coda mark to the coda; after the jump
+    # only the last ending of a repeat is played.
+    segno = (
+        "C",
+        "D|forward||segno",
+        "E|backward|1",
+        "F||2|To Coda",
+        "G|||D.S. al Coda",
+        "A|||coda",
+    )
+    path = _write(tmp_path / "segno.musicxml", _one_staff_score(*segno))
+    assert _pitches(path) == [60, 62, 64, 62, 65, 67, 62, 65, 69]
+    # A dal segno with no segno: played once as written, and said so.
+    lost = _write(tmp_path / "lost.musicxml", _one_staff_score("C", "D|||D.S."))
+    with pytest.warns(UserWarning, match="could not be expanded.*has no segno"):
+        assert _pitches(lost) == [60, 62]
 
-    monkeypatch.setattr(stream.Score, "expandRepeats", looping)
-    path = _write(tmp_path / "looping.musicxml", _one_staff_score("C", "D"))
-    with pytest.warns(UserWarning, match="would play a measure 5 times"):
-        assert [n.pitch for n in read_musicxml(path).notes] == [60, 62]
+
+def test_an_order_that_plays_a_measure_too_often_is_played_once(tmp_path: Path) -> None:
+    path = _write(tmp_path / "nine.musicxml", _one_staff_score("C|forward", "D|backward9"))
+    with pytest.warns(UserWarning, match="would play measure 1 5 times"):
+        assert _pitches(path) == [60, 62]
+
+
+def test_parts_of_different_lengths_are_played_as_written(tmp_path: Path) -> None:
+    one = _one_staff_score("C|forward", "D|backward")
+    body = one[one.index('<part id="P1">') : one.index("</score-partwise>")]
+    shorter = body.replace('id="P1"', 'id="P2"').replace("<octave>4</octave>", "<octave>3</octave>")
+    shorter = shorter[: shorter.index('<measure number="2">')] + "</part>"
+    text = one.replace(
+        "</part-list>", '<score-part id="P2"><part-name>B</part-name></score-part></part-list>'
+    ).replace("</score-partwise>", shorter + "</score-partwise>")
+    path = _write(tmp_path / "uneven.musicxml", text)
+    with pytest.warns(UserWarning, match="different numbers of measures"):
+        assert _pitches(path) == [48, 60, 62]
 
 
 def test_voices_merge_on_one_keyboard() -> None:

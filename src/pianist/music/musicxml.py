@@ -5,11 +5,13 @@ score is read. Reading conventions (a caller should know these):
 
 - Every part's notes and chords are read; tied notes are joined, voice by voice and pitch by
   pitch (in a chord only its tied pitches go on; a tie does not bridge a rest); grace notes
-  (no time of their own) are left out. Repeats are played as a performer plays them (music21
-  expands repeat signs, first and second endings, da capo and dal segno; an end-repeat sign
-  without a start goes back to just after the previous one); a score whose repeats music21
-  cannot expand, or expands into a measure played more than :data:`MAX_PLAYINGS` times, is
-  played once as written, with a warning.
+  (no time of their own) are left out. Repeats are played as a performer plays them
+  (:mod:`pianist.music.repeats`: repeat signs, numbered endings, da capo and dal segno, al
+  fine and al coda; an end-repeat sign without a start goes back to just after the previous
+  repeat; an ending bracket without a number is the next ending of its run). Marks that give
+  no order (a dal segno without a segno, a measure played more than
+  :data:`~pianist.music.repeats.MAX_PLAYINGS` times, parts of different numbers of measures)
+  are played once as written, with a warning.
 - Times come from the score's metronome marks (quarter = 120 before the first one, music21's
   default; a mark without a number keeps the tempo before it). Velocities from the score's
   dynamics where music21 gives them, else 80.
@@ -31,6 +33,7 @@ score is read. Reading conventions (a caller should know these):
 
 from __future__ import annotations
 
+import bisect
 import os
 import warnings
 from collections import Counter
@@ -44,6 +47,7 @@ from pianist.music.fileio import require_file
 from pianist.music.midi import MAX_DURATION_S
 from pianist.music.notes import LEFT, RIGHT, Note, Song
 from pianist.music.pitch import HIGHEST_PITCH, LOWEST_PITCH, out_of_range_error
+from pianist.music.repeats import Bar, RepeatError, playing_order
 
 #: File suffixes read as MusicXML (``.mxl`` is the compressed form).
 MUSICXML_SUFFIXES = (".musicxml", ".mxl", ".xml")
@@ -51,10 +55,6 @@ MUSICXML_SUFFIXES = (".musicxml", ".mxl", ".xml")
 DEFAULT_QUARTER_BPM = 120.0
 #: Velocity of a note whose score gives none.
 DEFAULT_VELOCITY = 80
-
-#: The most times a performer plays one measure: a repeated passage inside a part played
-#: again, with its repeat, after a da capo. An expansion of the repeats past it is wrong.
-MAX_PLAYINGS = 4
 
 #: How long the pedal is up at a pedal change inside a mark, in seconds: a quick change of a
 #: pianist's foot. (The goal's 20 Hz frames show it as one frame up only where the change
@@ -167,24 +167,15 @@ def read_musicxml(
         score = converter.parse(str(path), format="musicxml", forceSource=True)
     except Exception as exc:  # music21 raises many types for a file it cannot read
         raise MusicError(f"{path}: not a readable MusicXML score ({one_line(exc)})") from None
-    with _as_music_error(path):
-        pedals = _sustain_marks(score)  # before expanding: the marks point at the score's notes
-    if expand_repeats:
-        try:
-            score = _expand_repeats(score)
-        except Exception as exc:  # music21's expander refuses repeats it cannot make sense of
-            warnings.warn(
-                f"{path}: its repeats could not be expanded ({one_line(exc)}); played once "
-                "as written",
-                stacklevel=2,
-            )
     parts = list(getattr(score, "parts", ())) or [score]
     raw: list[RawNote] = []
     with _as_music_error(path):
-        seconds = seconds_of_offsets(score)
-        for part, hand in zip(parts, _hands_of_parts(parts), strict=True):
-            raw.extend(_part_notes(part, hand, seconds))
-        sustain = _pedal_intervals(pedals, score, seconds)
+        played = _played_measures(parts, expand_repeats, path)
+        seconds = _tempo_map(played)
+        playings: dict[int, list[tuple[float, float]]] = {}
+        for measures, hand in zip(played, _hands_of_parts(parts), strict=True):
+            raw.extend(_part_notes(measures, hand, seconds, playings))
+        sustain = _pedal_intervals(_sustain_marks(score), playings, seconds)
     outside = [r for r in raw if not LOWEST_PITCH <= r[0] <= HIGHEST_PITCH]
     if outside and out_of_range == "error":
         raise out_of_range_error(path, [r[0] for r in outside])
@@ -219,53 +210,181 @@ def _as_music_error(path: Path) -> Iterator[None]:
         ) from exc
 
 
-def _expand_repeats(score: Any) -> Any:
-    """The score as a performer plays it, its repeats expanded by music21, after the repeat
-    starts that the notation leaves implied are written in (:func:`_imply_repeat_starts`).
+class _Playing(NamedTuple):
+    """One playing of a measure: the measure (music21) and where it starts as played, in
+    quarter lengths from the piece's start."""
 
-    Raises:
-        ValueError: the expansion plays a measure more than :data:`MAX_PLAYINGS` times, as
-            music21 does where it goes back to a first movement's start from a later one.
-    """
-    _imply_repeat_starts(score)
-    played = score.expandRepeats()
-    parts = list(getattr(played, "parts", ())) or [played]
-    measures = parts[0].getElementsByClass("Measure")
-    counts = Counter(id(m.derivation.rootDerivation or m) for m in measures)
-    most = max(counts.values(), default=0)
-    if most > MAX_PLAYINGS:
-        raise ValueError(f"they would play a measure {most} times")
-    return played
+    measure: Any
+    start: float
 
 
-def _imply_repeat_starts(score: Any) -> None:
-    """Write in, part by part, the start-repeat sign that an end-repeat sign without one
-    implies: a performer goes back to just after the previous end-repeat (past that repeat's
-    endings), not to the piece's start as music21 does (which plays the first section once
-    more at every later repeat)."""
+def _played_measures(parts: list[Any], expand: bool, path: Path) -> list[list[_Playing]]:
+    """Per part, its measures in the order they are played, each with its start as played.
+
+    With ``expand`` the order follows the repeats (:func:`pianist.music.repeats.playing_order`);
+    without it, or where the marks give no order (then with a warning), the score is played
+    once as written. The parts start each measure together (:func:`_measure_lengths`). A
+    score whose parts have different numbers of measures is played part by part as music21
+    lays it out, and a part without measures as one measure."""
+    measures = [list(part.getElementsByClass("Measure")) for part in parts]
+    if any(not ms for ms in measures) or len({len(ms) for ms in measures}) != 1:
+        if expand and all(measures):
+            warnings.warn(
+                f"{path}: its repeats could not be expanded (its parts have different numbers "
+                "of measures); played once as written",
+                stacklevel=3,
+            )
+        return [
+            [_Playing(m, float(m.offset)) for m in ms] if ms else [_Playing(part, 0.0)]
+            for ms, part in zip(measures, parts, strict=True)
+        ]
+    order = list(range(len(measures[0])))
+    if expand:
+        try:
+            order = playing_order(_bars(measures))
+        except RepeatError as exc:
+            warnings.warn(
+                f"{path}: its repeats could not be expanded ({exc}); played once as written",
+                stacklevel=3,
+            )
+    lengths = _measure_lengths(measures)
+    starts = [0.0]
+    for index in order[:-1]:
+        starts.append(starts[-1] + lengths[index])
+    return [
+        [_Playing(ms[i], start) for i, start in zip(order, starts, strict=True)] for ms in measures
+    ]
+
+
+def _measure_lengths(measures: list[list[Any]]) -> list[float]:
+    """Each measure's length in quarter lengths, the same for every part: the length most
+    parts give it (the longest of equally common ones), each part's measure reaching to its
+    next one's start, the last one its own duration. A measure that one part's file leaves
+    short or overfull (a quartet's "measure 96 in Violin II is overfull") then does not shift
+    that part against the others for the rest of the piece, as music21's layout does."""
+    per_part = []
+    for ms in measures:
+        pairs = zip(ms[:-1], ms[1:], strict=True)
+        lengths = [max(0.0, float(b.offset) - float(a.offset)) for a, b in pairs]
+        per_part.append([*lengths, float(ms[-1].duration.quarterLength)])
+    consensus = []
+    for column in zip(*per_part, strict=True):
+        counts = Counter(round(length, 6) for length in column)
+        consensus.append(max(counts.items(), key=lambda item: (item[1], item[0]))[0])
+    return consensus
+
+
+def _bars(measures: list[list[Any]]) -> list[Bar]:
+    """What each measure's marks say about the order of playing, over all parts (a mark in any
+    part counts: scores often write a da capo or a segno over the top staff only)."""
     from music21 import bar
 
-    for part in list(getattr(score, "parts", ())) or [score]:
-        measures = list(part.getElementsByClass("Measure"))
-        back_to: int | None = None  # where an unopened repeat goes back to; None: the start
-        opened = False
-        for index, measure in enumerate(measures):
-            left, right = measure.leftBarline, measure.rightBarline
-            if isinstance(left, bar.Repeat) and left.direction == "start":
-                opened = True
-            if not (isinstance(right, bar.Repeat) and right.direction == "end"):
-                continue
-            if not opened and back_to is not None and back_to <= index:
-                measures[back_to].leftBarline = bar.Repeat(direction="start")
-            opened = False
-            back_to = index + 1
-            while back_to < len(measures) and _in_an_ending(measures[back_to]):
-                back_to += 1  # the second ending is played once, after the repeat
+    count = len(measures[0])
+    endings = _ending_numbers(measures)
+    marks = [
+        [e for ms in measures for e in ms[i].recurse().getElementsByClass("RepeatExpression")]
+        for i in range(count)
+    ]
+    kinds = [{type(e).__name__ for e in column} for column in marks]
+    to_coda = [any(_is_to_coda(e) for e in column) for column in marks]
+    coda = [
+        any(type(e).__name__ == "Coda" and not _is_to_coda(e) for e in column) for column in marks
+    ]
+    if not any(to_coda) and sum(coda) >= 2:  # two coda signs: the first is where to leave
+        first = coda.index(True)
+        to_coda[first], coda[first] = True, False
+    movements = _new_movements(measures[0])
+    bars = []
+    for i in range(count):
+        column = [ms[i] for ms in measures]
+        ends = [
+            m.rightBarline
+            for m in column
+            if isinstance(m.rightBarline, bar.Repeat) and m.rightBarline.direction == "end"
+        ]
+        jump, jump_to = _JUMPS.get(next(iter(sorted(kinds[i] & set(_JUMPS))), ""), (None, None))
+        bars.append(
+            Bar(
+                start_repeat=any(
+                    isinstance(m.leftBarline, bar.Repeat) and m.leftBarline.direction == "start"
+                    for m in column
+                ),
+                end_repeat=bool(ends),
+                times=max((int(r.times) for r in ends if r.times), default=None),
+                ending=endings[i],
+                segno="Segno" in kinds[i],
+                coda=coda[i],
+                to_coda=to_coda[i],
+                fine="Fine" in kinds[i],
+                jump=jump,
+                jump_to=jump_to,
+                new_movement=movements[i],
+            )
+        )
+    return bars
 
 
-def _in_an_ending(measure: Any) -> bool:
-    """Whether a measure lies under a first, second, ... ending's bracket."""
-    return any(type(s).__name__ == "RepeatBracket" for s in measure.getSpannerSites())
+def _new_movements(measures: list[Any]) -> list[bool]:
+    """Per measure, whether it starts a new movement: both its time and its key signature
+    change there (a trio or a middle section rarely changes both; a file holding a quartet's
+    movements does at each, and often nothing else marks them)."""
+    starts = [False] * len(measures)
+    meter, key = None, None
+    for i, measure in enumerate(measures):
+        meters = measure.getElementsByClass("TimeSignature")
+        keys = measure.getElementsByClass("KeySignature")
+        new_meter = meters[0].ratioString if meters else meter
+        new_key = keys[0].sharps if keys else key
+        starts[i] = i > 0 and new_meter != meter and new_key != key
+        meter, key = new_meter, new_key
+    return starts
+
+
+#: music21's jump marks: (where the jump goes, where it goes on to).
+_JUMPS: dict[str, tuple[Literal["capo", "segno"], Literal["fine", "coda"] | None]] = {
+    "DaCapo": ("capo", None),
+    "DaCapoAlFine": ("capo", "fine"),
+    "DaCapoAlCoda": ("capo", "coda"),
+    "DalSegno": ("segno", None),
+    "DalSegnoAlFine": ("segno", "fine"),
+    "DalSegnoAlCoda": ("segno", "coda"),
+}
+
+
+def _is_to_coda(mark: Any) -> bool:
+    """Whether a music21 ``Coda`` mark is a to-coda mark (its text "To Coda" or "al Coda"),
+    not the coda's own sign."""
+    if type(mark).__name__ != "Coda":
+        return False
+    text = str(mark.getText() or "").strip().lower()
+    return text.startswith(("to", "al"))
+
+
+def _ending_numbers(measures: list[list[Any]]) -> list[frozenset[int]]:
+    """Per measure, the numbers of the ending bracket over it (in any part). A bracket without
+    a number, or numbered as an ending before it in the same run (the file's slip), is the next
+    ending of its run: music21's own expansion refuses such scores."""
+    numbers: list[set[int]] = [set() for _ in measures[0]]
+    for ms in measures:
+        index = {id(m): i for i, m in enumerate(ms)}
+        brackets = {
+            id(s): s for m in ms for s in m.getSpannerSites() if type(s).__name__ == "RepeatBracket"
+        }
+        spans = []
+        for bracket in brackets.values():
+            covered = [index[id(m)] for m in bracket.getSpannedElements() if id(m) in index]
+            if covered:
+                spans.append((min(covered), max(covered), list(bracket.numberRange)))
+        last, highest = -2, 0
+        for first, final, listed in sorted(spans, key=lambda s: (s[0], s[1])):
+            before = highest if first == last + 1 else 0  # the run's endings so far
+            wanted = [n for n in listed if n > before]
+            if not wanted or len(wanted) < len(listed):
+                wanted = [before + 1]
+            for i in range(first, final + 1):
+                numbers[i].update(wanted)
+            last, highest = final, max(wanted)
+    return [frozenset(n) for n in numbers]
 
 
 def _sustain_marks(score: Any) -> list[PedalMark]:
@@ -285,18 +404,16 @@ def _sustain_marks(score: Any) -> list[PedalMark]:
 
 
 def _pedal_intervals(
-    marks: list[PedalMark], played: Any, seconds: Callable[[float], float]
+    marks: list[PedalMark],
+    playings: dict[int, list[tuple[float, float]]],
+    seconds: Callable[[float], float],
 ) -> tuple[tuple[float, float], ...]:
     """(start s, end s) of each sustain-pedal mark in the score as played, overlapping ones
-    merged. With the repeats expanded a note is played more than once: the k-th playing of a
-    mark's first note starts its k-th interval, the k-th playing of its last note ends it.
-    A pedal change inside an interval lifts the pedal there for :data:`PEDAL_CHANGE_S`."""
-    playings: dict[int, list[tuple[float, float]]] = {}
-    for element in played.recurse().getElementsByClass(("GeneralNote", "PedalBounce")):
-        source = element.derivation.rootDerivation or element  # the score's own element
-        onset = float(element.getOffsetInHierarchy(played))
-        span = (onset, onset + float(element.duration.quarterLength))
-        playings.setdefault(id(source), []).append(span)
+    merged. ``playings`` holds each note's and pedal change's playings, (onset, end) in
+    quarter lengths as played, by the element's ``id``: with the repeats expanded a note is
+    played more than once, and the k-th playing of a mark's first note starts its k-th
+    interval, the k-th playing of its last note ends it. A pedal change inside an interval
+    lifts the pedal there for :data:`PEDAL_CHANGE_S`."""
     spans: list[tuple[float, float]] = []
     for mark in marks:
         starts = sorted(playings.get(id(mark.first), []))
@@ -334,48 +451,125 @@ def _hands_of_parts(parts: list[Any]) -> tuple[str | None, ...]:
     return tuple(RIGHT if p is upper else LEFT if p is lower else None for p in parts)
 
 
-def _part_notes(part: Any, hand: str | None, seconds: Callable[[float], float]) -> list[RawNote]:
-    """The notes of one part (a staff), ties joined, grace notes left out.
+def _part_notes(
+    played: list[_Playing],
+    hand: str | None,
+    seconds: Callable[[float], float],
+    playings: dict[int, list[tuple[float, float]]],
+) -> list[RawNote]:
+    """The notes of one part (a staff) as played, ties joined, grace notes left out; each
+    note's and pedal change's playings are added to ``playings`` (see :func:`_pedal_intervals`).
 
     Ties are joined here, voice by voice and pitch by pitch, in one pass over the part's notes
     in time order: music21's ``stripTies`` copies the part and searches its spanners for every
     note (14 s per part of a Beethoven quartet movement, against milliseconds here), joins a
     chord's notes only all together, and bridges rests."""
-    voice_of = {id(e): _voice(e) for e in part.recurse().notes}
+    events: dict[int, list[_Event]] = {}  # each measure's, read once however often played
     entries: list[list[Any]] = []  # [pitch, onset ql, offset ql, velocity, finger]
     tied: dict[tuple[str | None, int], list[Any]] = {}  # (voice, pitch) -> the tied entry
-    for element in part.flatten().notes:
-        length = float(element.duration.quarterLength)
-        if length <= 0:  # grace notes have no time of their own
-            continue
-        onset = float(element.offset)  # the flattened part's offsets are the part's
-        velocity = int(element.volume.velocity or DEFAULT_VELOCITY)
-        pitches = [p.midi for p in element.pitches]
-        ties = _ties(element, len(pitches))
-        fingers = _finger_numbers(element)
-        if len(fingers) != len(pitches):
-            fingers = [None] * len(pitches)
-        for pitch, tie, number in zip(pitches, ties, fingers, strict=True):
-            key = _tied_key(tied, voice_of.get(id(element)), pitch, onset)
-            if key is not None:
-                # A tie carries the earlier note on; as in music21, the note a tie starts
-                # towards is joined even where the file forgets to mark the tie's end.
-                held = tied.pop(key)
-                held[2] = onset + length
-                if tie in ("start", "continue"):
-                    tied[key] = held
+    for measure, start in played:
+        if id(measure) not in events:
+            events[id(measure)] = _measure_events(measure)
+        for offset, element, voice, is_note, source in events[id(measure)]:
+            onset = start + offset
+            length = float(element.duration.quarterLength)
+            playings.setdefault(source, []).append((onset, onset + length))
+            if not is_note or length <= 0:  # grace notes have no time of their own
                 continue
-            finger = None
-            if hand is not None and number is not None:
-                finger = number - 1 + (0 if hand == RIGHT else 5)
-            entry = [pitch, onset, onset + length, velocity, finger]
-            entries.append(entry)
-            if tie in ("start", "continue"):
-                tied[(voice_of.get(id(element)), pitch)] = entry
+            velocity = int(element.volume.velocity or DEFAULT_VELOCITY)
+            pitches = [p.midi for p in element.pitches]
+            ties = _ties(element, len(pitches))
+            fingers = _finger_numbers(element)
+            if len(fingers) != len(pitches):
+                fingers = [None] * len(pitches)
+            for pitch, tie, number in zip(pitches, ties, fingers, strict=True):
+                key = _tied_key(tied, voice, pitch, onset)
+                if key is not None:
+                    # A tie carries the earlier note on; as in music21, the note a tie starts
+                    # towards is joined even where the file forgets to mark the tie's end.
+                    held = tied.pop(key)
+                    held[2] = onset + length
+                    if tie in ("start", "continue"):
+                        tied[key] = held
+                    continue
+                finger = None
+                if hand is not None and number is not None:
+                    finger = number - 1 + (0 if hand == RIGHT else 5)
+                entry = [pitch, onset, onset + length, velocity, finger]
+                entries.append(entry)
+                if tie in ("start", "continue"):
+                    tied[(voice, pitch)] = entry
     return [
         (pitch, seconds(onset), seconds(offset), velocity, hand, finger)
         for pitch, onset, offset, velocity, finger in entries
     ]
+
+
+class _Event(NamedTuple):
+    """A note, chord, rest or pedal change of a measure: its offset in the measure (quarter
+    lengths), the music21 element, its voice, whether it is a note or chord, and the ``id`` of
+    the element a pedal mark names for it (music21 gives the staves of a grand staff copies of
+    a pedal change, derived from the one the mark holds)."""
+
+    offset: float
+    element: Any
+    voice: str | None
+    is_note: bool
+    source: int
+
+
+def _measure_events(measure: Any) -> list[_Event]:
+    """A measure's notes, chords, rests and pedal changes in time order (through its
+    voices)."""
+    voice_of = {id(e): _voice(e) for e in measure.recurse().notes}  # before flattening
+    flat = measure.flatten()  # its offsets are the measure's
+    notes = {id(e) for e in flat.notes}
+    return [
+        _Event(
+            float(e.offset),
+            e,
+            voice_of.get(id(e)),
+            id(e) in notes,
+            id(e.derivation.rootDerivation or e),
+        )
+        for e in flat.getElementsByClass(("GeneralNote", "PedalBounce"))
+    ]
+
+
+def _tempo_map(played: list[list[_Playing]]) -> Callable[[float], float]:
+    """The map from a time as played (quarter lengths from the start) to seconds, through the
+    metronome marks (and other tempo indications) of every part as played: quarter = 120
+    before the first (music21's default), and a mark without a number keeps the tempo before
+    it. Of marks at one time the last part's holds."""
+    changes: list[tuple[float, float | None]] = []
+    marks: dict[int, list[tuple[float, Any]]] = {}
+    for measures in played:
+        for measure, start in measures:
+            if id(measure) not in marks:
+                flat = measure.flatten()
+                marks[id(measure)] = [
+                    (float(e.offset), e) for e in flat.getElementsByClass("TempoIndication")
+                ]
+            for offset, mark in marks[id(measure)]:
+                changes.append((start + offset, mark.getSoundingMetronomeMark().getQuarterBPM()))
+    starts, bpms = [0.0], [DEFAULT_QUARTER_BPM]
+    for at, bpm in sorted(changes, key=lambda change: change[0]):
+        if bpm is None or not bpm > 0:  # a mark without a number: the tempo goes on
+            bpm = bpms[-1]
+        if at <= starts[-1]:
+            bpms[-1] = float(bpm)
+        else:
+            starts.append(at)
+            bpms.append(float(bpm))
+    elapsed = [0.0]  # seconds at each tempo's start
+    for k in range(1, len(starts)):
+        elapsed.append(elapsed[-1] + (starts[k] - starts[k - 1]) * 60.0 / bpms[k - 1])
+
+    def seconds(ql: float) -> float:
+        k = max(0, bisect.bisect_right(starts, ql) - 1)
+        return elapsed[k] + (ql - starts[k]) * 60.0 / bpms[k]
+
+    return seconds
 
 
 def _voice(element: Any) -> str | None:
