@@ -350,17 +350,84 @@ def test_an_order_that_plays_a_measure_too_often_is_played_once(tmp_path: Path) 
         assert _pitches(path) == [60, 62]
 
 
-def test_parts_of_different_lengths_are_played_as_written(tmp_path: Path) -> None:
-    one = _one_staff_score("C|forward", "D|backward")
-    body = one[one.index('<part id="P1">') : one.index("</score-partwise>")]
-    shorter = body.replace('id="P1"', 'id="P2"').replace("<octave>4</octave>", "<octave>3</octave>")
-    shorter = shorter[: shorter.index('<measure number="2">')] + "</part>"
-    text = one.replace(
+def _two_parts(upper: str, lower: str) -> str:
+    """A score of two parts (the right and the left hand) from two one-part scores, the lower
+    one's notes an octave down."""
+    body = lower[lower.index('<part id="P1">') : lower.index("</score-partwise>")]
+    body = body.replace('id="P1"', 'id="P2"').replace("<octave>4</octave>", "<octave>3</octave>")
+    return upper.replace(
         "</part-list>", '<score-part id="P2"><part-name>B</part-name></score-part></part-list>'
-    ).replace("</score-partwise>", shorter + "</score-partwise>")
-    path = _write(tmp_path / "uneven.musicxml", text)
+    ).replace("</score-partwise>", body + "</score-partwise>")
+
+
+def test_parts_of_different_lengths_are_played_as_written(tmp_path: Path) -> None:
+    lower = _one_staff_score("C")
+    path = _write(
+        tmp_path / "uneven.musicxml", _two_parts(_one_staff_score("C|forward", "D|backward"), lower)
+    )
     with pytest.warns(UserWarning, match="different numbers of measures"):
         assert _pitches(path) == [48, 60, 62]
+
+
+def test_the_parts_start_every_measure_together(tmp_path: Path) -> None:
+    # The left hand's file leaves its first measure half empty: its second measure still
+    # starts with the right hand's (music21 lays it out 2 s early).
+    lower = _one_staff_score("C", "D").replace(
+        "<duration>4</duration>", "<duration>2</duration>", 1
+    )
+    path = _write(tmp_path / "short.musicxml", _two_parts(_one_staff_score("E", "F"), lower))
+    song = read_musicxml(path)
+    assert [(n.pitch, n.onset_s) for n in song.notes if n.hand == "left"] == [(48, 0.0), (50, 4.0)]
+
+
+def test_a_mark_in_one_part_is_played_by_every_part(tmp_path: Path) -> None:
+    # The segno and the dal segno are written over the right hand only.
+    upper = _one_staff_score("C", "D|||segno", "E|||D.S.")
+    path = _write(tmp_path / "segno.musicxml", _two_parts(upper, _one_staff_score("F", "G", "A")))
+    song = read_musicxml(path)
+    assert [n.pitch for n in song.notes if n.hand == "left"] == [53, 55, 57, 55, 57]
+    assert [n.pitch for n in song.notes if n.hand == "right"] == [60, 62, 64, 62, 64]
+
+
+def test_a_da_capo_goes_back_to_its_movement(tmp_path: Path) -> None:
+    # A first movement in 4/4 (C, D); a second in 3/4 with one sharp (E with the fine, F with
+    # "da capo al fine"); then G, which follows the fine.
+    def measure(number: int, step: str, beats: int, extra: str = "", attributes: str = "") -> str:
+        note = _note(step, 4, beats).replace("<staff>1</staff>", "")
+        return f'<measure number="{number}">{attributes}{note}{extra}</measure>'
+
+    def words(text: str) -> str:
+        return f"<direction><direction-type><words>{text}</words></direction-type></direction>"
+
+    first = (
+        "<attributes><divisions>1</divisions><key><fifths>0</fifths></key><time><beats>4</beats>"
+        '<beat-type>4</beat-type></time></attributes><sound tempo="60"/>'
+    )
+    second = (
+        "<attributes><key><fifths>1</fifths></key><time><beats>3</beats><beat-type>4</beat-type>"
+        "</time></attributes>"
+    )
+    body = (
+        measure(1, "C", 4, attributes=first)
+        + measure(2, "D", 4)
+        + measure(3, "E", 3, words("Fine"), attributes=second)
+        + measure(4, "F", 3, words("D.C. al Fine"))
+        + measure(5, "G", 3)
+    )
+    text = (
+        '<?xml version="1.0" encoding="UTF-8"?><score-partwise version="3.1"><part-list>'
+        '<score-part id="P1"><part-name>Piano</part-name></score-part></part-list>'
+        f'<part id="P1">{body}</part></score-partwise>'
+    )
+    song = read_musicxml(_write(tmp_path / "movements.musicxml", text))
+    assert [(n.pitch, n.onset_s) for n in song.notes] == [
+        (60, 0.0),
+        (62, 4.0),
+        (64, 8.0),
+        (65, 11.0),
+        (64, 14.0),
+        (67, 17.0),
+    ]
 
 
 def test_voices_merge_on_one_keyboard() -> None:
