@@ -345,9 +345,45 @@ def test_da_capo_and_dal_segno(tmp_path: Path) -> None:
 
 
 def test_an_order_that_plays_a_measure_too_often_is_played_once(tmp_path: Path) -> None:
-    path = _write(tmp_path / "nine.musicxml", _one_staff_score("C|forward", "D|backward9"))
-    with pytest.warns(UserWarning, match="would play measure 1 5 times"):
+    from pianist.music.repeats import MAX_PLAYINGS
+
+    count = f"backward{MAX_PLAYINGS + 1}"
+    path = _write(tmp_path / "many.musicxml", _one_staff_score("C|forward", f"D|{count}"))
+    with pytest.warns(UserWarning, match=f"would play measure 1 {MAX_PLAYINGS + 1} times"):
         assert _pitches(path) == [60, 62]
+
+
+def _measures_played(name: str, tmp_path: Path) -> list[int]:
+    """The measure numbers, in the order played, of a repeat test of the MusicXML test suite
+    that music21 ships (Lilypond's; one rest or note per measure): each measure's rest or note
+    is made a pitch that names the measure."""
+    import re
+
+    import music21
+
+    suite = Path(music21.__file__).parent / "musicxml" / "lilypondTestSuite"
+    text = next(suite.glob(f"{name}-*.xml")).read_text(encoding="utf-8")
+    chunks = re.split(r'(?=<measure number=")', text)
+    measure_of = {}
+    for k, chunk in enumerate(chunks[1:], start=1):
+        step, octave = "CDEFGAB"[k % 7], 3 + k // 7
+        measure_of[12 * (octave + 1) + [0, 2, 4, 5, 7, 9, 11][k % 7]] = k
+        pitch = f"<pitch><step>{step}</step><octave>{octave}</octave></pitch>"
+        chunks[k] = re.sub(r"<rest/>|<pitch>.*?</pitch>", pitch, chunk, flags=re.S)
+    path = _write(tmp_path / f"{name}.musicxml", "".join(chunks))
+    return [measure_of[n.pitch] for n in read_musicxml(path).notes]
+
+
+def test_the_repeat_tests_of_a_musicxml_test_suite(tmp_path: Path) -> None:
+    # A measure repeated five times, the count on its sign (music21 too).
+    assert _measures_played("45a", tmp_path) == [1, 1, 1, 1, 1, 2]
+    assert _measures_played("45b", tmp_path) == [1, 2, 1, 3, 4]
+    # Repeats after repeats, with endings: the repeat at the end of measure 7, under a first
+    # ending, goes back to measure 6, after the previous repeat (music21 does not take it).
+    expected = [1, 2, 1, 3, 4, 5, 5, 6, 7, 6, 8, 9, 8, 9, 10]
+    assert _measures_played("45e", tmp_path) == expected
+    # A start-repeat sign without an end (music21 refuses to expand the score).
+    assert _measures_played("45g", tmp_path) == [1, 2]
 
 
 def _two_parts(upper: str, lower: str) -> str:

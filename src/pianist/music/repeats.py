@@ -24,9 +24,10 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Literal
 
-#: The most times a measure may be played: a repeated passage inside a part played again,
-#: with its repeat, after a da capo. An order that plays a measure more often is refused.
-MAX_PLAYINGS = 4
+#: The most times one measure may be played. A count on a repeat sign (a passage played five
+#: times), a repeat taken again after a jump, stay below it; more is a file's slip (a count of
+#: 100), refused rather than played for minutes.
+MAX_PLAYINGS = 16
 
 
 class RepeatError(ValueError):
