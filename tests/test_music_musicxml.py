@@ -520,6 +520,21 @@ def test_info_says_the_hands_come_from_the_staves(tmp_path: Path, capsys) -> Non
     assert "hands:      left, right (from the score's staves)" in capsys.readouterr().out
 
 
+def test_info_says_what_the_repeats_add(tmp_path: Path, capsys) -> None:
+    measures = ("C", "D|forward", "E|backward", "F")
+    path = _write(tmp_path / "minuet.musicxml", _one_staff_score(*measures))
+    assert main(["info", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert "duration:   24.00 s" in out
+    assert "repeats:    played (16.00 s once through as written)" in out
+    plain = _write(tmp_path / "plain.musicxml", _one_staff_score("C", "D"))
+    assert main(["info", str(plain)]) == 0
+    assert "repeats:    none" in capsys.readouterr().out
+    lost = _write(tmp_path / "lost.musicxml", _one_staff_score("C", "D|||D.S."))
+    assert main(["info", str(lost)]) == 0
+    assert "repeats:    not played (see the warning)" in capsys.readouterr().out
+
+
 def test_play_a_musicxml_score(tmp_path: Path) -> None:
     path = _write(tmp_path / "piece.musicxml", _score(GRAND_STAFF))
     out = tmp_path / "out"

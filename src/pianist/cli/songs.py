@@ -116,6 +116,7 @@ class Info:
             song = load_song(self.song)
             # What `play` plays by default: the missing hands and fingers estimated.
             played = song if song.has_full_fingering else load_song(self.song, fingering="auto")
+            once = _once_through(self.song)
         problems = list(dict.fromkeys(" ".join(str(w.message).split()) for w in caught))
         problems += [p for p in check_playability(played) if not any(p in q for q in problems)]
         stats = song_stats(played)
@@ -147,6 +148,13 @@ class Info:
             lines.append(
                 f"range:      {pitch_to_name(min(pitches))} - {pitch_to_name(max(pitches))}"
             )
+        if once is not None:  # a score: what its repeats add
+            if any("repeats could not be expanded" in problem for problem in problems):
+                lines.append("repeats:    not played (see the warning)")
+            elif abs(once - song.duration_s) < 1e-6:
+                lines.append("repeats:    none")
+            else:
+                lines.append(f"repeats:    played ({once:.2f} s once through as written)")
         lines += [
             f"hands:      {hands}",
             f"fingering:  {fingering}",
@@ -159,3 +167,14 @@ class Info:
         ]
         lines += [f"warning:    {problem}" for problem in problems]
         _out("\n".join(lines))
+
+
+def _once_through(song: str) -> float | None:
+    """A MusicXML score's duration in seconds played once through as written, without its
+    repeats; None for anything else."""
+    from pianist.music import MUSICXML_SUFFIXES
+    from pianist.music.musicxml import read_musicxml
+
+    if Path(song).suffix.lower() not in MUSICXML_SUFFIXES or not Path(song).is_file():
+        return None
+    return read_musicxml(song, expand_repeats=False, out_of_range="drop").duration_s
