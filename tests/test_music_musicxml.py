@@ -99,6 +99,24 @@ def test_a_grand_staff_gives_hands_fingers_and_times(tmp_path: Path) -> None:
     assert [n.hand for n in played.notes] == [n.hand for n in song.notes]
 
 
+def test_transposing_instruments_are_read_at_the_pitch_they_sound(tmp_path: Path) -> None:
+    # A clarinet in B-flat: its written D4 sounds C4.
+    clarinet = _score(_note("D", 4, 4), staves=1).replace(
+        "</attributes>",
+        "<transpose><diatonic>-1</diatonic><chromatic>-2</chromatic></transpose></attributes>",
+    )
+    song = read_musicxml(_write(tmp_path / "clarinet.musicxml", clarinet))
+    assert [n.pitch for n in song.notes] == [60]
+    # The MusicXML test suite's trumpet in B-flat, horn in E-flat and piano, each writing the
+    # C major scale its own way: one scale, the parts in unison.
+    import music21
+
+    suite = Path(music21.__file__).parent / "musicxml" / "lilypondTestSuite"
+    song = read_musicxml(suite / "72a-TransposingInstruments.xml")
+    assert sorted({n.pitch for n in song.notes}) == [60, 62, 64, 65, 67, 69, 71, 72]
+    assert len({n.onset_s for n in song.notes}) == len(song.notes)
+
+
 def test_a_metronome_mark_without_a_number_keeps_the_tempo(tmp_path: Path) -> None:
     unnumbered = (
         "<direction><direction-type><metronome><beat-unit>quarter</beat-unit>"

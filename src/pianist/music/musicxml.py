@@ -3,15 +3,17 @@
 music21 parses the score (``pip install 'pianist[musicxml]'``); it is imported only when a
 score is read. Reading conventions (a caller should know these):
 
-- Every part's notes and chords are read; tied notes are joined, voice by voice and pitch by
-  pitch (in a chord only its tied pitches go on; a tie does not bridge a rest); grace notes
-  (no time of their own) are left out. Repeats are played as a performer plays them
-  (:mod:`pianist.music.repeats`: repeat signs, numbered endings, da capo and dal segno, al
-  fine and al coda; an end-repeat sign without a start goes back to just after the previous
-  repeat; an ending bracket without a number is the next ending of its run). Marks that give
-  no order (a dal segno without a segno, a measure played more than
-  :data:`~pianist.music.repeats.MAX_PLAYINGS` times, parts of different numbers of measures)
-  are played once as written, with a warning.
+- Every part's notes and chords are read, at the pitch they sound (a transposing
+  instrument's part, a clarinet in B-flat, is written as its player reads it); tied notes
+  are joined, voice by voice and pitch by pitch (in a chord only its tied pitches go on; a
+  tie does not bridge a rest); grace notes (no time of their own) are left out.
+- Repeats are played as a performer plays them (:mod:`pianist.music.repeats`: repeat signs,
+  numbered endings, da capo and dal segno, al fine and al coda; an end-repeat sign without a
+  start goes back to just after the previous repeat; an ending bracket without a number is
+  the next ending of its run). Marks that give no order (a dal segno without a segno, a
+  measure played more than :data:`~pianist.music.repeats.MAX_PLAYINGS` times, parts of
+  different numbers of measures) are played once as written, with a warning. Every part
+  starts each measure together.
 - Times come from the score's metronome marks (quarter = 120 before the first one, music21's
   default; a mark without a number keeps the tempo before it). Velocities from the score's
   dynamics where music21 gives them, else 80.
@@ -170,6 +172,7 @@ def read_musicxml(
     parts = list(getattr(score, "parts", ())) or [score]
     raw: list[RawNote] = []
     with _as_music_error(path):
+        _put_at_sounding_pitch(score, parts, path)
         played = _played_measures(parts, expand_repeats, path)
         seconds = _tempo_map(played)
         playings: dict[int, list[tuple[float, float]]] = {}
@@ -208,6 +211,22 @@ def _as_music_error(path: Path) -> Iterator[None]:
         raise MusicError(
             f"{path}: a score this reader cannot follow ({type(exc).__name__}: {one_line(exc)})"
         ) from exc
+
+
+def _put_at_sounding_pitch(score: Any, parts: list[Any], path: Path) -> None:
+    """Put the parts of transposing instruments (a clarinet in B-flat, a horn in F) at the
+    pitches they sound, in place: MusicXML writes their notes as the player reads them, a
+    major second above the sound for the clarinet."""
+    if all(getattr(part, "atSoundingPitch", True) is True for part in parts):
+        return
+    try:
+        score.toSoundingPitch(inPlace=True)
+    except Exception as exc:  # music21's transposition fails on shapes it did not foresee
+        warnings.warn(
+            f"{path}: its transposing instruments could not be put at the pitch they sound "
+            f"({one_line(exc)}); read as written",
+            stacklevel=3,
+        )
 
 
 class _Playing(NamedTuple):
