@@ -559,3 +559,66 @@ def test_play_a_musicxml_score(tmp_path: Path) -> None:
     assert main(["play", str(path), "--no-audio", "--out", str(out)]) == 0
     metrics = json.loads((out / "metrics.json").read_text())
     assert metrics["f1"] > 0.7 and metrics["steps"] == 81
+
+
+# A Humdrum **kern score: the left hand's spine first (C3 D3 E3 F3), then the right's (C4 ...),
+# quarter = 60.
+KERN = """**kern\t**kern
+*clefF4\t*clefG2
+*M4/4\t*M4/4
+*MM60\t*MM60
+=1-\t=1-
+4C\t4c
+4D\t4d
+4E\t4e
+4F\t4f
+==\t==
+*-\t*-
+"""
+
+# An ABC book of two tunes; the first repeats its first two bars (a scale), then D5 and C5.
+ABC = """X:1
+T:One
+M:4/4
+L:1/4
+Q:1/4=60
+K:C
+|: C D E F | G A B c :| d4 | c4 |]
+
+X:2
+T:Two
+M:4/4
+L:1/4
+K:C
+c d e f |]
+"""
+
+
+def test_humdrum_and_abc_scores(tmp_path: Path, capsys) -> None:
+    from pianist.music import load_song
+    from pianist.music.fileio import song_files
+
+    kern = _write(tmp_path / "scale.krn", KERN)
+    song = load_song(kern)
+    assert [(n.pitch, n.onset_s, n.hand) for n in song.notes if n.hand == "left"] == [
+        (48, 0.0, "left"),
+        (50, 1.0, "left"),
+        (52, 2.0, "left"),
+        (53, 3.0, "left"),
+    ]
+    assert [n.pitch for n in song.notes if n.hand == "right"] == [60, 62, 64, 65]
+    assert main(["info", str(kern)]) == 0
+    assert "hands:      left, right (from the score's staves)" in capsys.readouterr().out
+    abc = _write(tmp_path / "book.abc", ABC)
+    with pytest.warns(UserWarning, match="a book of 2 tunes; the first, 'One', is read"):
+        song = load_song(abc)
+    scale = [60, 62, 64, 65, 67, 69, 71, 72]
+    assert [(n.pitch, n.onset_s) for n in song.notes] == [
+        *((pitch, float(k)) for k, pitch in enumerate(scale + scale)),
+        (74, 16.0),
+        (72, 20.0),
+    ]
+    assert song_files(tmp_path) == [abc, kern]
+    # A file that is not of its suffix's format says which format was expected.
+    with pytest.raises(MusicError, match="not a readable Humdrum"):
+        load_song(_write(tmp_path / "bad.krn", "<html></html>"))

@@ -96,12 +96,13 @@ class Info:
     """
 
     song: tyro.conf.Positional[SongArg]
-    """A built-in song name, a MIDI file (.mid), a PIG fingering file (.txt) or a MusicXML score
-    (.musicxml, .mxl, .xml: hands from its staves, its finger numbers; needs music21)."""
+    """A built-in song name, a MIDI file (.mid), a PIG fingering file (.txt) or a score
+    (MusicXML .musicxml, .mxl, .xml; Humdrum .krn; ABC .abc: hands from its staves, its
+    finger numbers; needs music21)."""
 
     def run(self) -> None:
         from pianist.music import (
-            MUSICXML_SUFFIXES,
+            SCORE_SUFFIXES,
             check_playability,
             describe_midi_hands,
             goal_frames,
@@ -123,7 +124,7 @@ class Info:
         frames = goal_frames(song)
         pitches = [n.pitch for n in song.notes]
         hands = ", ".join(sorted(played.hands)) or "-"
-        from_score = Path(self.song).suffix.lower() in MUSICXML_SUFFIXES
+        from_score = Path(self.song).suffix.lower() in SCORE_SUFFIXES
         if from_score and song.notes and all(n.hand is not None for n in song.notes):
             hands += " (from the score's staves)"
         elif any(n.hand is None for n in song.notes):
@@ -170,11 +171,10 @@ class Info:
 
 
 def _once_through(song: str) -> float | None:
-    """A MusicXML score's duration in seconds played once through as written, without its
+    """A score's duration in seconds played once through as written, without its
     repeats; None for anything else."""
-    from pianist.music import MUSICXML_SUFFIXES
-    from pianist.music.musicxml import read_musicxml
+    from pianist.music import SCORE_SUFFIXES, read_score
 
-    if Path(song).suffix.lower() not in MUSICXML_SUFFIXES or not Path(song).is_file():
+    if Path(song).suffix.lower() not in SCORE_SUFFIXES or not Path(song).is_file():
         return None
-    return read_musicxml(song, expand_repeats=False, out_of_range="drop").duration_s
+    return read_score(song, expand_repeats=False, out_of_range="drop").duration_s

@@ -20,8 +20,9 @@ class View:
     stops the song. Needs a display (on a machine without one: xvfb-run -a pianist view ...)."""
 
     song: tyro.conf.Positional[SongArg]
-    """A built-in song name, a MIDI file (.mid), a PIG fingering file (.txt) or a MusicXML score
-    (.musicxml, .mxl, .xml: hands from its staves, its finger numbers; needs music21)."""
+    """A built-in song name, a MIDI file (.mid), a PIG fingering file (.txt) or a score
+    (MusicXML .musicxml, .mxl, .xml; Humdrum .krn; ABC .abc: hands from its staves, its
+    finger numbers; needs music21)."""
     controller: str = "planner"
     """planner, mpc[:...], policy:RUN_DIR, random, zero or replay:ACTIONS.npy (as for `pianist
     play`)."""

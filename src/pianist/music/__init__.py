@@ -1,4 +1,4 @@
-"""Songs for the piano task: notes, MIDI/PIG/MusicXML files, transforms, goal frames, built-in
+"""Songs for the piano task: notes, MIDI/PIG/score files, transforms, goal frames, built-in
 songs.
 
 This subpackage imports nothing else of :mod:`pianist`.
@@ -21,7 +21,7 @@ from pianist.music.fingering import (
 from pianist.music.frames import GoalFrames, goal_frames, num_goal_frames
 from pianist.music.library import SUITES, get_song, list_songs, load_song, song_description
 from pianist.music.midi import read_midi, write_midi
-from pianist.music.musicxml import MUSICXML_SUFFIXES, read_musicxml
+from pianist.music.musicxml import MUSICXML_SUFFIXES, SCORE_SUFFIXES, read_musicxml, read_score
 from pianist.music.notes import Note, Song
 from pianist.music.open_library import OPEN_SUITE, open_song_info
 from pianist.music.parts import describe_midi_hands, midi_hand_hints
@@ -33,6 +33,7 @@ from pianist.music.stats import SongStats, song_stats
 
 __all__ = [
     "MUSICXML_SUFFIXES",
+    "SCORE_SUFFIXES",
     "OPEN_SUITE",
     "SUITES",
     "GoalFrames",
@@ -63,6 +64,7 @@ __all__ = [
     "pitch_to_name",
     "read_midi",
     "read_musicxml",
+    "read_score",
     "read_pig",
     "song_description",
     "song_stats",

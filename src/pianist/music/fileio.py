@@ -25,13 +25,14 @@ def require_file(path: Path, error: type[MusicError], kind: str) -> int:
     return size
 
 
-#: Suffixes of the song files a folder of songs holds: MIDI, PIG fingering files (.txt) and
-#: MusicXML scores (not plain .xml, which a folder may hold for other things: MuJoCo models).
-SONG_FILE_SUFFIXES = (".mid", ".midi", ".txt", ".musicxml", ".mxl")
+#: Suffixes of the song files a folder of songs holds: MIDI, PIG fingering files (.txt),
+#: MusicXML scores (not plain .xml, which a folder may hold for other things: MuJoCo models),
+#: Humdrum and ABC scores.
+SONG_FILE_SUFFIXES = (".mid", ".midi", ".txt", ".musicxml", ".mxl", ".krn", ".abc")
 
 
 def song_files(folder: Path) -> list[Path]:
-    """The song files (MIDI, PIG or MusicXML, :data:`SONG_FILE_SUFFIXES`) directly in
+    """The song files (MIDI, PIG or scores, :data:`SONG_FILE_SUFFIXES`) directly in
     ``folder``, sorted by name."""
     return sorted(
         p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in SONG_FILE_SUFFIXES

@@ -25,7 +25,7 @@ from typing import Literal
 from pianist.music.errors import MidiFileError, MusicError, UnknownSongError
 from pianist.music.fingering import FingeringMode, assign_fingering, ensure_fingering
 from pianist.music.midi import read_midi
-from pianist.music.musicxml import MUSICXML_SUFFIXES, read_musicxml
+from pianist.music.musicxml import SCORE_SUFFIXES, read_score
 from pianist.music.notes import LEFT, RIGHT, Note, Song
 from pianist.music.open_library import (
     OPEN_SUITE,
@@ -261,7 +261,7 @@ def _unknown(name: str) -> UnknownSongError:
         )
     return UnknownSongError(
         f"unknown song {name!r}: {hint}run `pianist songs` to list the built-in songs, "
-        f"or give a path to a .mid/.midi or PIG .txt file{pig}"
+        f"or give a path to a .mid/.midi, PIG .txt or score (.musicxml, .mxl, .krn, .abc) file{pig}"
     )
 
 
@@ -315,8 +315,8 @@ def load_song(
     (``FrenchSuiteNo1Allemande``, ``RoboPianist-etude-12-FrenchSuiteNo1Allemande-v0``,
     ``pig-001``).
     ``.mid``/``.midi`` files go to :func:`read_midi` (no fingering), ``.txt`` files to
-    :func:`read_pig`, ``.musicxml``/``.mxl``/``.xml`` scores to
-    :func:`pianist.music.musicxml.read_musicxml` (hands from the staves, the score's finger
+    :func:`read_pig`, ``.musicxml``/``.mxl``/``.xml``, ``.krn`` and ``.abc`` scores to
+    :func:`pianist.music.musicxml.read_score` (hands from the staves, the score's finger
     numbers; needs music21); ``out_of_range`` is passed to each. A built-in name wins over a file of
     the same name in the working directory.
 
@@ -372,11 +372,11 @@ def _load_song(
         return read_midi(path, out_of_range=out_of_range)
     if suffix == ".txt":
         return read_pig(path, out_of_range=out_of_range)
-    if suffix in MUSICXML_SUFFIXES:
-        return read_musicxml(path, out_of_range=out_of_range)
+    if suffix in SCORE_SUFFIXES:
+        return read_score(path, out_of_range=out_of_range)
     if path.is_dir():
         raise MusicError(f"{path}: is a directory, not a song file")
     raise MusicError(
-        f"{path}: unsupported song file type (use .mid, .midi, a PIG .txt, or MusicXML: "
-        ".musicxml, .mxl, .xml)"
+        f"{path}: unsupported song file type (use .mid, .midi, a PIG .txt, a MusicXML score: "
+        ".musicxml, .mxl, .xml, a Humdrum .krn or an ABC .abc)"
     )

@@ -1,4 +1,5 @@
-"""Read MusicXML scores (``.musicxml``, ``.mxl``, ``.xml``) as :class:`~pianist.music.notes.Song`.
+"""Read scores as :class:`~pianist.music.notes.Song`: MusicXML (``.musicxml``, ``.mxl``,
+``.xml``), Humdrum ``**kern`` (``.krn``) and ABC (``.abc``).
 
 music21 parses the score (``pip install 'pianist[musicxml]'``); it is imported only when a
 score is read. Reading conventions (a caller should know these):
@@ -53,6 +54,14 @@ from pianist.music.repeats import Bar, RepeatError, playing_order
 
 #: File suffixes read as MusicXML (``.mxl`` is the compressed form).
 MUSICXML_SUFFIXES = (".musicxml", ".mxl", ".xml")
+#: File suffixes of every score :func:`read_score` reads: MusicXML, Humdrum ``**kern`` and ABC.
+SCORE_SUFFIXES = (*MUSICXML_SUFFIXES, ".krn", ".abc")
+#: Per suffix, music21's name of the format and the name messages give it.
+_FORMATS = {
+    **{suffix: ("musicxml", "MusicXML") for suffix in MUSICXML_SUFFIXES},
+    ".krn": ("humdrum", "Humdrum **kern"),
+    ".abc": ("abc", "ABC"),
+}
 #: Quarter notes per minute before a score's first metronome mark (music21's default).
 DEFAULT_QUARTER_BPM = 120.0
 #: Velocity of a note whose score gives none.
@@ -135,40 +144,55 @@ def merge_voices(raw: Iterable[RawNote]) -> list[Note]:
     ]
 
 
-def read_musicxml(
+def read_score(
     path: str | os.PathLike[str],
     *,
     out_of_range: Literal["error", "drop"] = "error",
     expand_repeats: bool = True,
 ) -> Song:
-    """Read a MusicXML score into a :class:`Song` (see the module docstring's conventions).
+    """Read a score into a :class:`Song` (see the module docstring's conventions): MusicXML,
+    or Humdrum ``**kern`` or ABC, which music21 parses into the same shape.
 
     Args:
-        path: a ``.musicxml``, ``.mxl`` or ``.xml`` file.
+        path: a ``.musicxml``, ``.mxl`` or ``.xml`` (MusicXML), ``.krn`` (Humdrum) or
+            ``.abc`` file (of an ABC book of several tunes, the first is read, with a
+            warning).
         out_of_range: "error" raises :class:`OutOfRangeError` when any note lies outside MIDI
             21..108; "drop" leaves such notes out.
         expand_repeats: play the repeats (False: once through, as written).
 
     Raises:
-        MusicError: music21 missing; a missing, unreadable or non-MusicXML file; a score
-            music21 parses into a shape this reader cannot follow; no notes; a timeline
-            longer than one hour.
+        MusicError: music21 missing; a missing or unreadable file, or one not of its suffix's
+            format; a score music21 parses into a shape this reader cannot follow; no notes;
+            a timeline longer than one hour.
         OutOfRangeError: notes outside the piano's keys with ``out_of_range="error"``.
     """
     if out_of_range not in ("error", "drop"):
         raise ValueError(f"out_of_range must be 'error' or 'drop', got {out_of_range!r}")
     path = Path(path)
-    require_file(path, MusicError, "MusicXML file")
+    music21_format, kind = _FORMATS.get(path.suffix.lower(), _FORMATS[".musicxml"])
+    require_file(path, MusicError, f"{kind} file")
     try:
         from music21 import converter
     except ImportError:
         raise MusicError(
-            f"{path}: reading MusicXML needs music21 (pip install 'pianist[musicxml]')"
+            f"{path}: reading {kind} needs music21 (pip install 'pianist[musicxml]')"
         ) from None
     try:
-        score = converter.parse(str(path), format="musicxml", forceSource=True)
+        score = converter.parse(str(path), format=music21_format, forceSource=True)
     except Exception as exc:  # music21 raises many types for a file it cannot read
-        raise MusicError(f"{path}: not a readable MusicXML score ({one_line(exc)})") from None
+        raise MusicError(f"{path}: not a readable {kind} score ({one_line(exc)})") from None
+    tunes = list(getattr(score, "scores", ()))  # an ABC book parses into an Opus of tunes
+    if tunes:
+        score = tunes[0]
+        if len(tunes) > 1:
+            title = getattr(score.metadata, "title", None) if score.metadata else None
+            warnings.warn(
+                f"{path}: a book of {len(tunes)} tunes; the first"
+                + (f", {title!r}," if title else "")
+                + " is read",
+                stacklevel=2,
+            )
     parts = list(getattr(score, "parts", ())) or [score]
     raw: list[RawNote] = []
     with _as_music_error(path):
@@ -197,6 +221,10 @@ def read_musicxml(
             "refusing an absurd length"
         )
     return Song(notes=tuple(notes), sustain=sustain, name=path.stem)
+
+
+#: The same reader, by the name it had when it read MusicXML only.
+read_musicxml = read_score
 
 
 @contextmanager
