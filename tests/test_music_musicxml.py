@@ -594,7 +594,27 @@ c d e f |]
 """
 
 
-def test_humdrum_and_abc_scores(tmp_path: Path, capsys) -> None:
+# An MEI score of two staves and two measures, the second ending with an end-repeat sign.
+MEI = """<?xml version="1.0" encoding="UTF-8"?>
+<mei xmlns="http://www.music-encoding.org/ns/mei" meiversion="4.0.0">
+<meiHead><fileDesc><titleStmt><title>Test</title></titleStmt><pubStmt/></fileDesc></meiHead>
+<music><body><mdiv><score>
+<scoreDef meter.count="4" meter.unit="4" key.sig="0"><staffGrp>
+<staffDef n="1" lines="5" clef.shape="G" clef.line="2"/>
+<staffDef n="2" lines="5" clef.shape="F" clef.line="4"/>
+</staffGrp></scoreDef>
+<section>
+<measure n="1"><staff n="1"><layer n="1"><note pname="c" oct="5" dur="2"/>
+<note pname="d" oct="5" dur="2"/></layer></staff>
+<staff n="2"><layer n="1"><note pname="c" oct="3" dur="1"/></layer></staff></measure>
+<measure n="2" right="rptend"><staff n="1"><layer n="1"><note pname="e" oct="5" dur="1"/>
+</layer></staff><staff n="2"><layer n="1"><note pname="g" oct="2" dur="1"/></layer></staff>
+</measure>
+</section></score></mdiv></body></music></mei>
+"""
+
+
+def test_humdrum_abc_and_mei_scores(tmp_path: Path, capsys) -> None:
     from pianist.music import load_song
     from pianist.music.fileio import song_files
 
@@ -618,7 +638,11 @@ def test_humdrum_and_abc_scores(tmp_path: Path, capsys) -> None:
         (74, 16.0),
         (72, 20.0),
     ]
-    assert song_files(tmp_path) == [abc, kern]
+    mei = _write(tmp_path / "repeat.mei", MEI)
+    song = load_song(mei)
+    assert [n.pitch for n in song.notes if n.hand == "right"] == [72, 74, 76] * 2
+    assert [n.pitch for n in song.notes if n.hand == "left"] == [48, 43] * 2
+    assert song_files(tmp_path) == [abc, mei, kern]
     # A file that is not of its suffix's format says which format was expected.
     with pytest.raises(MusicError, match="not a readable Humdrum"):
         load_song(_write(tmp_path / "bad.krn", "<html></html>"))

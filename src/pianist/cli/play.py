@@ -27,8 +27,8 @@ class Play:
 
     song: tyro.conf.Positional[SongArg]
     """A built-in song name, a MIDI file (.mid), a PIG fingering file (.txt) or a score
-    (MusicXML .musicxml, .mxl, .xml; Humdrum .krn; ABC .abc: hands from its staves, its
-    finger numbers; needs music21)."""
+    (MusicXML .musicxml, .mxl, .xml; Humdrum .krn; ABC .abc; MEI .mei: hands from its
+    staves, its finger numbers; needs music21)."""
     controller: str = "planner"
     """planner; refine (the planner, each action refined by looking ahead with the physics, or
     e.g. refine:candidates=16,horizon_steps=6,sigma=0.15; ~5x slower than real time); search

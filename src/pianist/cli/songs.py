@@ -97,8 +97,8 @@ class Info:
 
     song: tyro.conf.Positional[SongArg]
     """A built-in song name, a MIDI file (.mid), a PIG fingering file (.txt) or a score
-    (MusicXML .musicxml, .mxl, .xml; Humdrum .krn; ABC .abc: hands from its staves, its
-    finger numbers; needs music21)."""
+    (MusicXML .musicxml, .mxl, .xml; Humdrum .krn; ABC .abc; MEI .mei: hands from its
+    staves, its finger numbers; needs music21)."""
 
     def run(self) -> None:
         from pianist.music import (

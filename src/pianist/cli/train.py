@@ -28,7 +28,7 @@ class Train:
             tyro.conf.arg(metavar="SONG", help_behavior_hint="(required unless --resume)"),
         ]
     ] = None
-    """A built-in song name, a MIDI file, a PIG file or a score (MusicXML, Humdrum, ABC)."""
+    """A built-in song name, a MIDI file, a PIG file or a score (MusicXML, Humdrum, ABC, MEI)."""
     preset: str = DEFAULT_PRESET
     """practice (a correction per step learned by replaying the piece with the refiner's
     look-ahead: no network, no JAX; the best measured per minute on real pieces),
@@ -204,7 +204,7 @@ class Eval:
     run_dir: tyro.conf.Positional[Annotated[Path, tyro.conf.arg(metavar="RUN_DIR")]]
     """A training run directory (from `pianist train`)."""
     song: tyro.conf.Positional[SongArg]
-    """A built-in song name, a MIDI file, a PIG file or a score (MusicXML, Humdrum, ABC)."""
+    """A built-in song name, a MIDI file, a PIG file or a score (MusicXML, Humdrum, ABC, MEI)."""
     out: Annotated[Path | None, tyro.conf.arg(help_behavior_hint="(default: RUN_DIR/eval)")] = None
     """Output directory."""
     seed: int = 0

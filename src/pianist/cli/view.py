@@ -21,8 +21,8 @@ class View:
 
     song: tyro.conf.Positional[SongArg]
     """A built-in song name, a MIDI file (.mid), a PIG fingering file (.txt) or a score
-    (MusicXML .musicxml, .mxl, .xml; Humdrum .krn; ABC .abc: hands from its staves, its
-    finger numbers; needs music21)."""
+    (MusicXML .musicxml, .mxl, .xml; Humdrum .krn; ABC .abc; MEI .mei: hands from its
+    staves, its finger numbers; needs music21)."""
     controller: str = "planner"
     """planner, mpc[:...], policy:RUN_DIR, random, zero or replay:ACTIONS.npy (as for `pianist
     play`)."""

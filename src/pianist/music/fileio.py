@@ -27,8 +27,8 @@ def require_file(path: Path, error: type[MusicError], kind: str) -> int:
 
 #: Suffixes of the song files a folder of songs holds: MIDI, PIG fingering files (.txt),
 #: MusicXML scores (not plain .xml, which a folder may hold for other things: MuJoCo models),
-#: Humdrum and ABC scores.
-SONG_FILE_SUFFIXES = (".mid", ".midi", ".txt", ".musicxml", ".mxl", ".krn", ".abc")
+#: Humdrum, ABC and MEI scores.
+SONG_FILE_SUFFIXES = (".mid", ".midi", ".txt", ".musicxml", ".mxl", ".krn", ".abc", ".mei")
 
 
 def song_files(folder: Path) -> list[Path]:

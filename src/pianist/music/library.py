@@ -261,7 +261,8 @@ def _unknown(name: str) -> UnknownSongError:
         )
     return UnknownSongError(
         f"unknown song {name!r}: {hint}run `pianist songs` to list the built-in songs, "
-        f"or give a path to a .mid/.midi, PIG .txt or score (.musicxml, .mxl, .krn, .abc) file{pig}"
+        "or give a path to a .mid/.midi, PIG .txt or score (.musicxml, .mxl, .krn, .abc, .mei) "
+        f"file{pig}"
     )
 
 
@@ -315,7 +316,7 @@ def load_song(
     (``FrenchSuiteNo1Allemande``, ``RoboPianist-etude-12-FrenchSuiteNo1Allemande-v0``,
     ``pig-001``).
     ``.mid``/``.midi`` files go to :func:`read_midi` (no fingering), ``.txt`` files to
-    :func:`read_pig`, ``.musicxml``/``.mxl``/``.xml``, ``.krn`` and ``.abc`` scores to
+    :func:`read_pig`, ``.musicxml``/``.mxl``/``.xml``, ``.krn``, ``.abc`` and ``.mei`` scores to
     :func:`pianist.music.musicxml.read_score` (hands from the staves, the score's finger
     numbers; needs music21); ``out_of_range`` is passed to each. A built-in name wins over a file of
     the same name in the working directory.
@@ -378,5 +379,5 @@ def _load_song(
         raise MusicError(f"{path}: is a directory, not a song file")
     raise MusicError(
         f"{path}: unsupported song file type (use .mid, .midi, a PIG .txt, a MusicXML score: "
-        ".musicxml, .mxl, .xml, a Humdrum .krn or an ABC .abc)"
+        ".musicxml, .mxl, .xml, a Humdrum .krn, an ABC .abc or an MEI .mei)"
     )

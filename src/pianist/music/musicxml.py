@@ -1,5 +1,5 @@
 """Read scores as :class:`~pianist.music.notes.Song`: MusicXML (``.musicxml``, ``.mxl``,
-``.xml``), Humdrum ``**kern`` (``.krn``) and ABC (``.abc``).
+``.xml``), Humdrum ``**kern`` (``.krn``), ABC (``.abc``) and MEI (``.mei``).
 
 music21 parses the score (``pip install 'pianist[musicxml]'``); it is imported only when a
 score is read. Reading conventions (a caller should know these):
@@ -54,13 +54,15 @@ from pianist.music.repeats import Bar, RepeatError, playing_order
 
 #: File suffixes read as MusicXML (``.mxl`` is the compressed form).
 MUSICXML_SUFFIXES = (".musicxml", ".mxl", ".xml")
-#: File suffixes of every score :func:`read_score` reads: MusicXML, Humdrum ``**kern`` and ABC.
-SCORE_SUFFIXES = (*MUSICXML_SUFFIXES, ".krn", ".abc")
+#: File suffixes of every score :func:`read_score` reads: MusicXML, Humdrum ``**kern``, ABC
+#: and MEI (the Music Encoding Initiative's).
+SCORE_SUFFIXES = (*MUSICXML_SUFFIXES, ".krn", ".abc", ".mei")
 #: Per suffix, music21's name of the format and the name messages give it.
 _FORMATS = {
     **{suffix: ("musicxml", "MusicXML") for suffix in MUSICXML_SUFFIXES},
     ".krn": ("humdrum", "Humdrum **kern"),
     ".abc": ("abc", "ABC"),
+    ".mei": ("mei", "MEI"),
 }
 #: Quarter notes per minute before a score's first metronome mark (music21's default).
 DEFAULT_QUARTER_BPM = 120.0
@@ -151,12 +153,12 @@ def read_score(
     expand_repeats: bool = True,
 ) -> Song:
     """Read a score into a :class:`Song` (see the module docstring's conventions): MusicXML,
-    or Humdrum ``**kern`` or ABC, which music21 parses into the same shape.
+    or Humdrum ``**kern``, ABC or MEI, which music21 parses into the same shape.
 
     Args:
-        path: a ``.musicxml``, ``.mxl`` or ``.xml`` (MusicXML), ``.krn`` (Humdrum) or
-            ``.abc`` file (of an ABC book of several tunes, the first is read, with a
-            warning).
+        path: a ``.musicxml``, ``.mxl`` or ``.xml`` (MusicXML), ``.krn`` (Humdrum), ``.abc``
+            (of an ABC book of several tunes, the first is read, with a warning) or ``.mei``
+            file.
         out_of_range: "error" raises :class:`OutOfRangeError` when any note lies outside MIDI
             21..108; "drop" leaves such notes out.
         expand_repeats: play the repeats (False: once through, as written).
