@@ -630,8 +630,15 @@ def test_humdrum_abc_and_mei_scores(tmp_path: Path, capsys) -> None:
     assert main(["info", str(kern)]) == 0
     assert "hands:      left, right (from the score's staves)" in capsys.readouterr().out
     abc = _write(tmp_path / "book.abc", ABC)
-    with pytest.warns(UserWarning, match="a book of 2 tunes; the first, 'One', is read"):
+    with pytest.warns(UserWarning, match=r"a book of 2 tunes; the first, 'One', is read \(name"):
         song = load_song(abc)
+    # Another tune of the book, named by its reference number; a number the book lacks.
+    second = load_song(f"{abc}#2")
+    assert ([n.pitch for n in second.notes], second.name) == ([72, 74, 76, 77], "book-2")
+    with pytest.raises(MusicError, match="book.abc: not a readable ABC score.*9"):
+        load_song(f"{abc}#9")
+    assert main(["info", f"{abc}#2"]) == 0
+    assert "repeats:    none" in capsys.readouterr().out
     scale = [60, 62, 64, 65, 67, 69, 71, 72]
     assert [(n.pitch, n.onset_s) for n in song.notes] == [
         *((pitch, float(k)) for k, pitch in enumerate(scale + scale)),

@@ -174,7 +174,9 @@ def _once_through(song: str) -> float | None:
     """A score's duration in seconds played once through as written, without its
     repeats; None for anything else."""
     from pianist.music import SCORE_SUFFIXES, read_score
+    from pianist.music.musicxml import tune_reference
 
-    if Path(song).suffix.lower() not in SCORE_SUFFIXES or not Path(song).is_file():
+    is_score = Path(song).suffix.lower() in SCORE_SUFFIXES and Path(song).is_file()
+    if not is_score and tune_reference(song) is None:
         return None
     return read_score(song, expand_repeats=False, out_of_range="drop").duration_s

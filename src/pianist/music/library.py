@@ -25,7 +25,7 @@ from typing import Literal
 from pianist.music.errors import MidiFileError, MusicError, UnknownSongError
 from pianist.music.fingering import FingeringMode, assign_fingering, ensure_fingering
 from pianist.music.midi import read_midi
-from pianist.music.musicxml import SCORE_SUFFIXES, read_score
+from pianist.music.musicxml import SCORE_SUFFIXES, read_score, tune_reference
 from pianist.music.notes import LEFT, RIGHT, Note, Song
 from pianist.music.open_library import (
     OPEN_SUITE,
@@ -318,7 +318,8 @@ def load_song(
     ``.mid``/``.midi`` files go to :func:`read_midi` (no fingering), ``.txt`` files to
     :func:`read_pig`, ``.musicxml``/``.mxl``/``.xml``, ``.krn``, ``.abc`` and ``.mei`` scores to
     :func:`pianist.music.musicxml.read_score` (hands from the staves, the score's finger
-    numbers; needs music21); ``out_of_range`` is passed to each. A built-in name wins over a file of
+    numbers; needs music21; ``BOOK.abc#X`` names one tune of an ABC book); ``out_of_range``
+    is passed to each. A built-in name wins over a file of
     the same name in the working directory.
 
     ``fingering`` (None leaves the song as loaded) applies
@@ -363,6 +364,8 @@ def _load_song(
         if is_pig_name(text) or text in ETUDE_12 or find_pig_song(text) is not None:
             return load_pig_song(text)
     path = Path(text)
+    if not path.exists() and tune_reference(text) is not None:  # BOOK.abc#X
+        return read_score(text, out_of_range=out_of_range)
     looks_like_path = bool(path.suffix) or "/" in text or os.sep in text
     if not path.exists():
         if looks_like_path or not isinstance(name_or_path, str):

@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import bisect
 import os
+import re
 import warnings
 from collections import Counter
 from collections.abc import Callable, Iterable, Iterator
@@ -157,8 +158,8 @@ def read_score(
 
     Args:
         path: a ``.musicxml``, ``.mxl`` or ``.xml`` (MusicXML), ``.krn`` (Humdrum), ``.abc``
-            (of an ABC book of several tunes, the first is read, with a warning) or ``.mei``
-            file.
+            or ``.mei`` file. Of an ABC book of several tunes the first is read, with a
+            warning, or the one ``BOOK.abc#X`` names (:func:`tune_reference`).
         out_of_range: "error" raises :class:`OutOfRangeError` when any note lies outside MIDI
             21..108; "drop" leaves such notes out.
         expand_repeats: play the repeats (False: once through, as written).
@@ -171,7 +172,8 @@ def read_score(
     """
     if out_of_range not in ("error", "drop"):
         raise ValueError(f"out_of_range must be 'error' or 'drop', got {out_of_range!r}")
-    path = Path(path)
+    reference = None if Path(path).exists() else tune_reference(os.fspath(path))
+    path, tune = reference if reference is not None else (Path(path), None)
     music21_format, kind = _FORMATS.get(path.suffix.lower(), _FORMATS[".musicxml"])
     require_file(path, MusicError, f"{kind} file")
     try:
@@ -181,7 +183,8 @@ def read_score(
             f"{path}: reading {kind} needs music21 (pip install 'pianist[musicxml]')"
         ) from None
     try:
-        score = converter.parse(str(path), format=music21_format, forceSource=True)
+        options = {} if tune is None else {"number": tune}
+        score = converter.parse(str(path), format=music21_format, forceSource=True, **options)
     except Exception as exc:  # music21 raises many types for a file it cannot read
         raise MusicError(f"{path}: not a readable {kind} score ({one_line(exc)})") from None
     tunes = list(getattr(score, "scores", ()))  # an ABC book parses into an Opus of tunes
@@ -192,7 +195,7 @@ def read_score(
             warnings.warn(
                 f"{path}: a book of {len(tunes)} tunes; the first"
                 + (f", {title!r}," if title else "")
-                + " is read",
+                + f" is read (name another as {path.name}#X, X its reference number)",
                 stacklevel=2,
             )
     parts = list(getattr(score, "parts", ())) or [score]
@@ -222,7 +225,15 @@ def read_score(
             f"{path}: timeline longer than {MAX_DURATION_S / 3600:g} hour (reaches {end:.0f} s); "
             "refusing an absurd length"
         )
-    return Song(notes=tuple(notes), sustain=sustain, name=path.stem)
+    name = path.stem if tune is None else f"{path.stem}-{tune}"
+    return Song(notes=tuple(notes), sustain=sustain, name=name)
+
+
+def tune_reference(text: str) -> tuple[Path, int] | None:
+    """``BOOK.abc#X`` names the tune of reference number X (its ``X:`` field) in an ABC book:
+    (the book's path, X); None for any other text."""
+    match = re.fullmatch(r"(.+\.abc)#(\d+)", text, flags=re.IGNORECASE)
+    return (Path(match[1]), int(match[2])) if match else None
 
 
 #: The same reader, by the name it had when it read MusicXML only.
