@@ -117,6 +117,30 @@ def test_transposing_instruments_are_read_at_the_pitch_they_sound(tmp_path: Path
     assert len({n.onset_s for n in song.notes}) == len(song.notes)
 
 
+def test_a_timewise_score_reads_as_its_partwise_form(tmp_path: Path) -> None:
+    def part(number: int, pid: str, step: str, octave: int) -> str:
+        attributes = "<attributes><divisions>1</divisions></attributes>" if number == 1 else ""
+        note = _note(step, octave, 4).replace("<staff>1</staff>", "")
+        return f'<part id="{pid}">{attributes}{note}</part>'
+
+    measures = "".join(
+        f'<measure number="{n}">{part(n, "P1", step, 5)}{part(n, "P2", step, 3)}</measure>'
+        for n, step in ((1, "C"), (2, "D"))
+    )
+    text = (
+        '<?xml version="1.0" encoding="UTF-8"?><score-timewise version="3.1"><part-list>'
+        '<score-part id="P1"><part-name>R</part-name></score-part>'
+        '<score-part id="P2"><part-name>L</part-name></score-part></part-list>'
+        f"{measures}</score-timewise>"
+    )
+    expected = [(48, 0.0, "left"), (72, 0.0, "right"), (50, 2.0, "left"), (74, 2.0, "right")]
+    song = read_musicxml(_write(tmp_path / "timewise.musicxml", text))
+    assert [(n.pitch, n.onset_s, n.hand) for n in song.notes] == expected
+    utf16 = tmp_path / "timewise16.xml"
+    utf16.write_bytes(text.replace("UTF-8", "UTF-16").encode("utf-16"))
+    assert [(n.pitch, n.onset_s, n.hand) for n in read_musicxml(utf16).notes] == expected
+
+
 def test_a_metronome_mark_without_a_number_keeps_the_tempo(tmp_path: Path) -> None:
     unnumbered = (
         "<direction><direction-type><metronome><beat-unit>quarter</beat-unit>"

@@ -31,6 +31,8 @@ score is read. Reading conventions (a caller should know these):
 - Fingering: the score's finger numbers (1-5, the first of a substitution such as "4-3") are
   kept on the notes whose hand is known; a chord's numbers go to its notes in order when there
   is one per note. Notes without one are fingered by ``--fingering auto``.
+- A MusicXML score written measure by measure (``score-timewise``) is read as the usual
+  part by part form.
 - Absurd scores are refused as MIDI files are: a timeline past one hour, no notes.
 """
 
@@ -184,7 +186,10 @@ def read_score(
         ) from None
     try:
         options = {} if tune is None else {"number": tune}
-        score = converter.parse(str(path), format=music21_format, forceSource=True, **options)
+        source: str = str(path)
+        if path.suffix.lower() in (".musicxml", ".xml"):
+            source = _partwise(path.read_bytes()) or source  # music21 reads partwise only
+        score = converter.parse(source, format=music21_format, forceSource=True, **options)
     except Exception as exc:  # music21 raises many types for a file it cannot read
         raise MusicError(f"{path}: not a readable {kind} score ({one_line(exc)})") from None
     tunes = list(getattr(score, "scores", ()))  # an ABC book parses into an Opus of tunes
@@ -227,6 +232,42 @@ def read_score(
         )
     name = path.stem if tune is None else f"{path.stem}-{tune}"
     return Song(notes=tuple(notes), sustain=sustain, name=name)
+
+
+#: The encodings a MusicXML file comes in (music21's corpus holds UTF-16 ones).
+_ENCODINGS = ("utf-8", "utf-16-le", "utf-16-be")
+
+
+def _partwise(document: bytes) -> str | None:
+    """A ``score-timewise`` MusicXML document (measures holding parts) turned into the
+    ``score-partwise`` one music21 reads (parts holding measures); None for any other
+    document, or one that is not XML (music21 then says what is wrong with it)."""
+    import xml.etree.ElementTree as ET
+
+    head = document[:65536]  # the root element's name, in UTF-8 or UTF-16
+    if not any("score-timewise".encode(encoding) in head for encoding in _ENCODINGS):
+        return None
+    try:
+        root = ET.fromstring(document)
+    except ET.ParseError:
+        return None
+    if root.tag != "score-timewise":
+        return None
+    partwise = ET.Element("score-partwise", root.attrib)
+    parts: dict[str, ET.Element] = {}
+    for child in root:
+        if child.tag != "measure":  # the header: work, identification, part-list, ...
+            partwise.append(child)
+            continue
+        for part in child.findall("part"):
+            measure = ET.SubElement(
+                parts.setdefault(part.get("id", ""), ET.Element("part", part.attrib)),
+                "measure",
+                child.attrib,
+            )
+            measure.extend(list(part))
+    partwise.extend(parts.values())
+    return ET.tostring(partwise, encoding="unicode")
 
 
 def tune_reference(text: str) -> tuple[Path, int] | None:
