@@ -141,6 +141,23 @@ def test_a_timewise_score_reads_as_its_partwise_form(tmp_path: Path) -> None:
     assert [(n.pitch, n.onset_s, n.hand) for n in read_musicxml(utf16).notes] == expected
 
 
+def test_dynamics_give_the_velocities(tmp_path: Path) -> None:
+    def dynamic(mark: str) -> str:
+        return (
+            f"<direction><direction-type><dynamics><{mark}/></dynamics></direction-type>"
+            "<staff>1</staff></direction>"
+        )
+
+    # Right hand: p C5, sf D5 (an accent: the level stays p), E5, f F5. Left hand: C3 for
+    # the bar, under the upper staff's p (the staves of a grand staff share their marks).
+    measure = dynamic("p") + _note("C", 5, 1) + dynamic("sf") + _note("D", 5, 1)
+    measure += _note("E", 5, 1) + dynamic("f") + _note("F", 5, 1)
+    measure += "<backup><duration>4</duration></backup>" + _note("C", 3, 4, staff=2)
+    song = read_musicxml(_write(tmp_path / "dynamics.musicxml", _score(measure)))
+    velocity = {n.pitch: n.velocity for n in song.notes}
+    assert velocity == {72: 44, 74: 108, 76: 44, 77: 89, 48: 44}  # p 0.35, f 0.7, sf 0.85 of 127
+
+
 def test_a_metronome_mark_without_a_number_keeps_the_tempo(tmp_path: Path) -> None:
     unnumbered = (
         "<direction><direction-type><metronome><beat-unit>quarter</beat-unit>"

@@ -16,8 +16,10 @@ score is read. Reading conventions (a caller should know these):
   different numbers of measures) are played once as written, with a warning. Every part
   starts each measure together.
 - Times come from the score's metronome marks (quarter = 120 before the first one, music21's
-  default; a mark without a number keeps the tempo before it). Velocities from the score's
-  dynamics where music21 gives them, else 80.
+  default; a mark without a number keeps the tempo before it). Velocities from the note's own
+  (where the file gives one), else from the part's dynamics marks (p, mf, ff: music21's
+  loudness of each, times 127; sf, fz accent their note; the two staves of a grand staff
+  share their marks), else 80.
 - Sustain-pedal marks are the song's pedal intervals, each from the onset of the first note
   under the mark to the end of the last; a pedal change inside a mark (``<pedal
   type="change">``) lifts the pedal for :data:`PEDAL_CHANGE_S` there.
@@ -208,10 +210,13 @@ def read_score(
     with _as_music_error(path):
         _put_at_sounding_pitch(score, parts, path)
         played = _played_measures(parts, expand_repeats, path)
-        seconds = _tempo_map(played)
+        events = {id(m): _measure_events(m) for measures in played for m, _ in measures}
+        seconds = _tempo_map(played, events)
         playings: dict[int, list[tuple[float, float]]] = {}
-        for measures, hand in zip(played, _hands_of_parts(parts), strict=True):
-            raw.extend(_part_notes(measures, hand, seconds, playings))
+        for measures, hand, loudness in zip(
+            played, _hands_of_parts(parts), _loudness(played, parts, events), strict=True
+        ):
+            raw.extend(_part_notes(measures, hand, seconds, playings, events, loudness))
         sustain = _pedal_intervals(_sustain_marks(score), playings, seconds)
     outside = [r for r in raw if not LOWEST_PITCH <= r[0] <= HIGHEST_PITCH]
     if outside and out_of_range == "error":
@@ -557,27 +562,30 @@ def _part_notes(
     hand: str | None,
     seconds: Callable[[float], float],
     playings: dict[int, list[tuple[float, float]]],
+    events: dict[int, list[_Event]],
+    loudness: Callable[[float], int | None],
 ) -> list[RawNote]:
     """The notes of one part (a staff) as played, ties joined, grace notes left out; each
     note's and pedal change's playings are added to ``playings`` (see :func:`_pedal_intervals`).
+    ``events`` holds each measure's events (:func:`_measure_events`), ``loudness`` the
+    velocity the part's dynamics give at a time as played (:func:`_loudness`).
 
     Ties are joined here, voice by voice and pitch by pitch, in one pass over the part's notes
     in time order: music21's ``stripTies`` copies the part and searches its spanners for every
     note (14 s per part of a Beethoven quartet movement, against milliseconds here), joins a
     chord's notes only all together, and bridges rests."""
-    events: dict[int, list[_Event]] = {}  # each measure's, read once however often played
     entries: list[list[Any]] = []  # [pitch, onset ql, offset ql, velocity, finger]
     tied: dict[tuple[str | None, int], list[Any]] = {}  # (voice, pitch) -> the tied entry
     for measure, start in played:
-        if id(measure) not in events:
-            events[id(measure)] = _measure_events(measure)
-        for offset, element, voice, is_note, source in events[id(measure)]:
+        for offset, element, voice, kind, source in events[id(measure)]:
+            if kind in ("tempo", "dynamic"):
+                continue
             onset = start + offset
             length = float(element.duration.quarterLength)
             playings.setdefault(source, []).append((onset, onset + length))
-            if not is_note or length <= 0:  # grace notes have no time of their own
+            if kind != "note" or length <= 0:  # grace notes have no time of their own
                 continue
-            velocity = int(element.volume.velocity or DEFAULT_VELOCITY)
+            velocity = int(element.volume.velocity or loudness(onset) or DEFAULT_VELOCITY)
             pitches = [p.midi for p in element.pitches]
             ties = _ties(element, len(pitches))
             fingers = _finger_numbers(element)
@@ -607,52 +615,56 @@ def _part_notes(
 
 
 class _Event(NamedTuple):
-    """A note, chord, rest or pedal change of a measure: its offset in the measure (quarter
-    lengths), the music21 element, its voice, whether it is a note or chord, and the ``id`` of
-    the element a pedal mark names for it (music21 gives the staves of a grand staff copies of
-    a pedal change, derived from the one the mark holds)."""
+    """What a measure holds at a time: its offset in the measure (quarter lengths), the
+    music21 element, its voice, its kind ("note" for a note or chord, "other" for a rest or a
+    pedal change, "tempo", "dynamic"), and the ``id`` of the element a pedal mark names for it
+    (music21 gives the staves of a grand staff copies of a pedal change, derived from the one
+    the mark holds)."""
 
     offset: float
     element: Any
     voice: str | None
-    is_note: bool
+    kind: Literal["note", "other", "tempo", "dynamic"]
     source: int
 
 
 def _measure_events(measure: Any) -> list[_Event]:
-    """A measure's notes, chords, rests and pedal changes in time order (through its
-    voices)."""
+    """A measure's notes, chords, rests, pedal changes, tempo indications and dynamics, in time
+    order (through its voices)."""
     voice_of = {id(e): _voice(e) for e in measure.recurse().notes}  # before flattening
     flat = measure.flatten()  # its offsets are the measure's
     notes = {id(e) for e in flat.notes}
-    return [
-        _Event(
-            float(e.offset),
-            e,
-            voice_of.get(id(e)),
-            id(e) in notes,
-            id(e.derivation.rootDerivation or e),
+    classes = ("GeneralNote", "PedalBounce", "TempoIndication", "Dynamic")
+    events = []
+    for e in flat.getElementsByClass(classes):
+        kind: Literal["note", "other", "tempo", "dynamic"] = (
+            "note"
+            if id(e) in notes
+            else "tempo"
+            if "TempoIndication" in e.classes
+            else "dynamic"
+            if "Dynamic" in e.classes
+            else "other"
         )
-        for e in flat.getElementsByClass(("GeneralNote", "PedalBounce"))
-    ]
+        source = id(e.derivation.rootDerivation or e)
+        events.append(_Event(float(e.offset), e, voice_of.get(id(e)), kind, source))
+    return events
 
 
-def _tempo_map(played: list[list[_Playing]]) -> Callable[[float], float]:
+def _tempo_map(
+    played: list[list[_Playing]], events: dict[int, list[_Event]]
+) -> Callable[[float], float]:
     """The map from a time as played (quarter lengths from the start) to seconds, through the
     metronome marks (and other tempo indications) of every part as played: quarter = 120
     before the first (music21's default), and a mark without a number keeps the tempo before
     it. Of marks at one time the last part's holds."""
     changes: list[tuple[float, float | None]] = []
-    marks: dict[int, list[tuple[float, Any]]] = {}
     for measures in played:
         for measure, start in measures:
-            if id(measure) not in marks:
-                flat = measure.flatten()
-                marks[id(measure)] = [
-                    (float(e.offset), e) for e in flat.getElementsByClass("TempoIndication")
-                ]
-            for offset, mark in marks[id(measure)]:
-                changes.append((start + offset, mark.getSoundingMetronomeMark().getQuarterBPM()))
+            for event in events[id(measure)]:
+                if event.kind == "tempo":
+                    bpm = event.element.getSoundingMetronomeMark().getQuarterBPM()
+                    changes.append((start + event.offset, bpm))
     starts, bpms = [0.0], [DEFAULT_QUARTER_BPM]
     for at, bpm in sorted(changes, key=lambda change: change[0]):
         if bpm is None or not bpm > 0:  # a mark without a number: the tempo goes on
@@ -671,6 +683,67 @@ def _tempo_map(played: list[list[_Playing]]) -> Callable[[float], float]:
         return elapsed[k] + (ql - starts[k]) * 60.0 / bpms[k]
 
     return seconds
+
+
+#: Dynamics that accent the notes they fall on, and the level they leave after them (None: the
+#: level before them goes on; "fp": loud, then soft).
+_ACCENTS: dict[str, str | None] = {
+    **dict.fromkeys(("sf", "sfz", "sffz", "fz", "rf", "rfz")),
+    "fp": "p",
+    "sfp": "p",
+}
+
+
+def _loudness(
+    played: list[list[_Playing]], parts: list[Any], events: dict[int, list[_Event]]
+) -> list[Callable[[float], int | None]]:
+    """Per part, the velocity (1-127) its dynamics give a note at a time as played (quarter
+    lengths): an accent (sf, fz, ...) on the note's own time, else the last level (pp, mf,
+    ...) at or before it; None before the first. music21's loudness of each mark (p 0.35, f
+    0.7 of full) scales 127. The two staves of a grand staff share their marks: a mark
+    printed between them belongs to both."""
+    from music21 import dynamics
+
+    marks: dict[str, list[tuple[float, int, bool]]] = {}  # staff group -> (time, velocity, accent)
+    for measures, part in zip(played, parts, strict=True):
+        group = marks.setdefault(_staff_group(part), [])
+        for measure, start in measures:
+            for event in events[id(measure)]:
+                scalar = event.element.volumeScalar if event.kind == "dynamic" else None
+                if scalar is None or not scalar > 0:
+                    continue
+                at, value = start + event.offset, str(event.element.value)
+                group.append((at, _velocity(scalar), value in _ACCENTS))
+                after = _ACCENTS.get(value)
+                if after is not None:
+                    group.append((at, _velocity(dynamics.Dynamic(after).volumeScalar), False))
+    return [_loudness_of(marks[_staff_group(part)]) for part in parts]
+
+
+def _velocity(scalar: float) -> int:
+    """A MIDI velocity from music21's loudness scalar (0-1)."""
+    return max(1, min(127, round(127 * float(scalar))))
+
+
+def _staff_group(part: Any) -> str:
+    """The part's instrument: music21 names the staves of one grand staff "P1-Staff1",
+    "P1-Staff2"."""
+    return str(part.id).split("-Staff")[0] if type(part).__name__ == "PartStaff" else str(id(part))
+
+
+def _loudness_of(marks: list[tuple[float, int, bool]]) -> Callable[[float], int | None]:
+    """The lookup :func:`_loudness` returns for one staff group's marks."""
+    levels = sorted((at, velocity) for at, velocity, accent in marks if not accent)
+    accents = {round(at, 6): velocity for at, velocity, accent in marks if accent}
+    times = [at for at, _ in levels]
+
+    def loudness(ql: float) -> int | None:
+        if round(ql, 6) in accents:
+            return accents[round(ql, 6)]
+        k = bisect.bisect_right(times, ql + 1e-9) - 1
+        return levels[k][1] if k >= 0 else None
+
+    return loudness
 
 
 def _voice(element: Any) -> str | None:
