@@ -186,6 +186,10 @@ def read_score(
         raise MusicError(
             f"{path}: reading {kind} needs music21 (pip install 'pianist[musicxml]')"
         ) from None
+    book: list[int] = []  # an ABC book's reference numbers, when no tune is named
+    if music21_format == "abc" and tune is None:
+        book = _reference_numbers(path)
+        tune = book[0] if len(book) > 1 else None  # music21 then parses that tune alone
     try:
         options = {} if tune is None else {"number": tune}
         source: str = str(path)
@@ -194,17 +198,16 @@ def read_score(
         score = converter.parse(source, format=music21_format, forceSource=True, **options)
     except Exception as exc:  # music21 raises many types for a file it cannot read
         raise MusicError(f"{path}: not a readable {kind} score ({one_line(exc)})") from None
-    tunes = list(getattr(score, "scores", ()))  # an ABC book parses into an Opus of tunes
-    if tunes:
-        score = tunes[0]
-        if len(tunes) > 1:
-            title = getattr(score.metadata, "title", None) if score.metadata else None
-            warnings.warn(
-                f"{path}: a book of {len(tunes)} tunes; the first"
-                + (f", {title!r}," if title else "")
-                + f" is read (name another as {path.name}#X, X its reference number)",
-                stacklevel=2,
-            )
+    tunes = list(getattr(score, "scores", ()))  # music21 parses several tunes into an Opus
+    score = tunes[0] if tunes else score
+    if len(book) > 1:
+        title = getattr(score.metadata, "title", None) if score.metadata else None
+        warnings.warn(
+            f"{path}: a book of {len(book)} tunes; the first"
+            + (f", {title!r}," if title else "")
+            + f" is read (name another as {path.name}#X, X its reference number)",
+            stacklevel=2,
+        )
     parts = list(getattr(score, "parts", ())) or [score]
     raw: list[RawNote] = []
     with _as_music_error(path):
@@ -273,6 +276,12 @@ def _partwise(document: bytes) -> str | None:
             measure.extend(list(part))
     partwise.extend(parts.values())
     return ET.tostring(partwise, encoding="unicode")
+
+
+def _reference_numbers(path: Path) -> list[int]:
+    """The reference numbers (``X:`` fields) of the tunes in an ABC file, in order."""
+    text = path.read_text(encoding="utf-8", errors="replace")
+    return [int(m[1]) for m in re.finditer(r"^X:\s*(\d+)", text, flags=re.MULTILINE)]
 
 
 def tune_reference(text: str) -> tuple[Path, int] | None:
