@@ -180,34 +180,7 @@ def read_score(
     path, tune = reference if reference is not None else (Path(path), None)
     music21_format, kind = _FORMATS.get(path.suffix.lower(), _FORMATS[".musicxml"])
     require_file(path, MusicError, f"{kind} file")
-    try:
-        from music21 import converter
-    except ImportError:
-        raise MusicError(
-            f"{path}: reading {kind} needs music21 (pip install 'pianist[musicxml]')"
-        ) from None
-    book: list[int] = []  # an ABC book's reference numbers, when no tune is named
-    if music21_format == "abc" and tune is None:
-        book = _reference_numbers(path)
-        tune = book[0] if len(book) > 1 else None  # music21 then parses that tune alone
-    try:
-        options = {} if tune is None else {"number": tune}
-        source: str = str(path)
-        if path.suffix.lower() in (".musicxml", ".xml"):
-            source = _partwise(path.read_bytes()) or source  # music21 reads partwise only
-        score = converter.parse(source, format=music21_format, forceSource=True, **options)
-    except Exception as exc:  # music21 raises many types for a file it cannot read
-        raise MusicError(f"{path}: not a readable {kind} score ({one_line(exc)})") from None
-    tunes = list(getattr(score, "scores", ()))  # music21 parses several tunes into an Opus
-    score = tunes[0] if tunes else score
-    if len(book) > 1:
-        title = getattr(score.metadata, "title", None) if score.metadata else None
-        warnings.warn(
-            f"{path}: a book of {len(book)} tunes; the first"
-            + (f", {title!r}," if title else "")
-            + f" is read (name another as {path.name}#X, X its reference number)",
-            stacklevel=2,
-        )
+    score, tune = _parse(path, tune, music21_format, kind)
     parts = list(getattr(score, "parts", ())) or [score]
     raw: list[RawNote] = []
     with _as_music_error(path):
@@ -240,6 +213,45 @@ def read_score(
         )
     name = path.stem if tune is None else f"{path.stem}-{tune}"
     return Song(notes=tuple(notes), sustain=sustain, name=name)
+
+
+def _parse(path: Path, tune: int | None, music21_format: str, kind: str) -> tuple[Any, int | None]:
+    """The score music21 parses from ``path`` in ``music21_format`` (``kind`` names it in
+    messages), and the reference number of the ABC tune read (``tune``, or a book's first:
+    only that tune is parsed; None for one tune or another format).
+
+    Raises:
+        MusicError: music21 missing, or the file not of its format.
+    """
+    try:
+        from music21 import converter
+    except ImportError:
+        raise MusicError(
+            f"{path}: reading {kind} needs music21 (pip install 'pianist[musicxml]')"
+        ) from None
+    book: list[int] = []  # an ABC book's reference numbers, when no tune is named
+    if music21_format == "abc" and tune is None:
+        book = _reference_numbers(path)
+        tune = book[0] if len(book) > 1 else None  # music21 then parses that tune alone
+    try:
+        options = {} if tune is None else {"number": tune}
+        source: str = str(path)
+        if path.suffix.lower() in (".musicxml", ".xml"):
+            source = _partwise(path.read_bytes()) or source  # music21 reads partwise only
+        score = converter.parse(source, format=music21_format, forceSource=True, **options)
+    except Exception as exc:  # music21 raises many types for a file it cannot read
+        raise MusicError(f"{path}: not a readable {kind} score ({one_line(exc)})") from None
+    tunes = list(getattr(score, "scores", ()))  # music21 parses several tunes into an Opus
+    score = tunes[0] if tunes else score
+    if len(book) > 1:
+        title = getattr(score.metadata, "title", None) if score.metadata else None
+        warnings.warn(
+            f"{path}: a book of {len(book)} tunes; the first"
+            + (f", {title!r}," if title else "")
+            + f" is read (name another as {path.name}#X, X its reference number)",
+            stacklevel=3,
+        )
+    return score, tune
 
 
 #: The encodings a MusicXML file comes in (music21's corpus holds UTF-16 ones).
