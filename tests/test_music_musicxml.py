@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import sys
+import warnings
 from pathlib import Path
 
 import pytest
@@ -462,6 +463,12 @@ def test_parts_of_different_lengths_are_played_as_written(tmp_path: Path) -> Non
     )
     with pytest.warns(UserWarning, match="different numbers of measures"):
         assert _pitches(path) == [48, 60, 62]
+    # Without repeat marks there is nothing to warn about.
+    plain = _two_parts(_one_staff_score("C", "D"), lower)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert _pitches(_write(tmp_path / "plain.musicxml", plain)) == [48, 60, 62]
+    assert not [w for w in caught if "could not be expanded" in str(w.message)]
 
 
 def test_the_parts_start_every_measure_together(tmp_path: Path) -> None:

@@ -355,7 +355,7 @@ def _played_measures(parts: list[Any], expand: bool, path: Path) -> list[list[_P
     lays it out, and a part without measures as one measure."""
     measures = [list(part.getElementsByClass("Measure")) for part in parts]
     if any(not ms for ms in measures) or len({len(ms) for ms in measures}) != 1:
-        if expand and all(measures):
+        if expand and all(measures) and _has_repeat_marks(measures):
             warnings.warn(
                 f"{path}: its repeats could not be expanded (its parts have different numbers "
                 "of measures); played once as written",
@@ -381,6 +381,20 @@ def _played_measures(parts: list[Any], expand: bool, path: Path) -> list[list[_P
     return [
         [_Playing(ms[i], start) for i, start in zip(order, starts, strict=True)] for ms in measures
     ]
+
+
+def _has_repeat_marks(measures: list[list[Any]]) -> bool:
+    """Whether any measure holds a repeat sign, an ending's bracket or a jump mark."""
+    from music21 import bar
+
+    for m in (m for ms in measures for m in ms):
+        if isinstance(m.leftBarline, bar.Repeat) or isinstance(m.rightBarline, bar.Repeat):
+            return True
+        if any(type(s).__name__ == "RepeatBracket" for s in m.getSpannerSites()):
+            return True
+        if m.recurse().getElementsByClass("RepeatExpression"):
+            return True
+    return False
 
 
 def _measure_lengths(measures: list[list[Any]]) -> list[float]:
