@@ -99,26 +99,8 @@ def seconds_of_offsets(score: Any, quarter_bpm: float | None = None) -> Callable
     through the score's metronome marks, or at ``quarter_bpm`` throughout when given."""
     if quarter_bpm is not None:
         return lambda ql: float(ql) * 60.0 / quarter_bpm
-    bounds: list[tuple[float, float, float]] = []
-    before = DEFAULT_QUARTER_BPM
-    for start, end, mark in score.metronomeMarkBoundaries():
-        bpm = mark.getQuarterBPM()
-        if bpm is None or not bpm > 0:  # a mark without a number: the tempo goes on
-            bpm = before
-        bounds.append((float(start), float(end), float(bpm)))
-        before = bpm
-
-    def seconds(ql: float) -> float:
-        total = 0.0
-        for start, end, bpm in bounds:
-            if ql <= start:
-                break
-            total += (min(ql, end) - start) * 60.0 / bpm
-        if ql > bounds[-1][1]:
-            total += (ql - bounds[-1][1]) * 60.0 / bounds[-1][2]
-        return total
-
-    return seconds
+    boundaries = score.metronomeMarkBoundaries()
+    return _seconds_through([(float(start), mark.getQuarterBPM()) for start, _, mark in boundaries])
 
 
 def merge_voices(raw: Iterable[RawNote]) -> list[Note]:
@@ -700,6 +682,13 @@ def _tempo_map(
                 if event.kind == "tempo":
                     bpm = event.element.getSoundingMetronomeMark().getQuarterBPM()
                     changes.append((start + event.offset, bpm))
+    return _seconds_through(changes)
+
+
+def _seconds_through(changes: list[tuple[float, float | None]]) -> Callable[[float], float]:
+    """The map from quarter lengths to seconds through tempo changes (time in quarter
+    lengths, quarter notes per minute): quarter = 120 before the first, a change without a
+    number keeps the tempo before it, and of changes at one time the last holds."""
     starts, bpms = [0.0], [DEFAULT_QUARTER_BPM]
     for at, bpm in sorted(changes, key=lambda change: change[0]):
         if bpm is None or not bpm > 0:  # a mark without a number: the tempo goes on
