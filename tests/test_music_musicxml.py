@@ -90,7 +90,8 @@ def test_a_grand_staff_gives_hands_fingers_and_times(tmp_path: Path) -> None:
         (60, 1.0, 2.0, "right", 0),
         (64, 1.0, 2.0, "right", 2),
         (67, 1.0, 2.0, "right", 4),
-        (72, 2.0, 4.0, "right", None),  # tied over two beats; the grace note left out
+        (74, 2.0, 2.1, "right", None),  # the grace note, on the beat, for 0.1 s
+        (72, 2.1, 4.0, "right", None),  # tied over two beats, after its grace note
     ]
     assert song.name == "piece" and not song.sustain
     # The fingering estimate keeps the score's fingers and hands and fills in the rest.
@@ -159,6 +160,115 @@ def test_dynamics_give_the_velocities(tmp_path: Path) -> None:
     assert velocity == {72: 44, 74: 108, 76: 44, 77: 89, 48: 44}  # p 0.35, f 0.7, sf 0.85 of 127
 
 
+def _ornamented(step: str, octave: int, duration: int, ornament: str) -> str:
+    """A right-hand note (durations in sixteenths) carrying an ``<ornaments>`` child."""
+    return (
+        f"<note><pitch><step>{step}</step><octave>{octave}</octave></pitch>"
+        f"<duration>{duration}</duration><staff>1</staff>"
+        f"<notations><ornaments>{ornament}</ornaments></notations></note>"
+    )
+
+
+def _sixteenths_score(measure: str) -> str:
+    """A one-part, one-staff 4/4 measure in D major (divisions 4: durations in sixteenths)
+    at quarter = 60."""
+    return (
+        '<?xml version="1.0" encoding="UTF-8"?><score-partwise version="3.1"><part-list>'
+        '<score-part id="P1"><part-name>Piano</part-name></score-part></part-list>'
+        '<part id="P1"><measure number="1"><attributes><divisions>4</divisions>'
+        "<key><fifths>2</fifths></key><time><beats>4</beats><beat-type>4</beat-type></time>"
+        "</attributes>"
+        "<direction><direction-type><metronome><beat-unit>quarter</beat-unit>"
+        '<per-minute>60</per-minute></metronome></direction-type><sound tempo="60"/></direction>'
+        f"{measure}</measure></part></score-partwise>"
+    )
+
+
+def test_ornaments_are_played_as_a_performer_plays_them(tmp_path: Path, capsys) -> None:
+    grace = (
+        '<note><grace slash="yes"/><pitch><step>G</step><octave>4</octave></pitch>'
+        "<staff>1</staff></note>"
+    )
+    measure = (
+        _ornamented("B", 4, 4, "<trill-mark/>")  # beat 1: a trill, in D major up to C#
+        + grace
+        + _note("E", 5, 4)  # beat 2, after its grace note
+        + _ornamented("D", 5, 4, "<mordent/>")  # beat 3: D C# D
+        + _ornamented("E", 5, 2, "<turn/>")  # beat 4: F# E D E, a short note
+        + _ornamented("A", 4, 2, '<tremolo type="single">3</tremolo>')  # four A4s
+    )
+    path = _write(tmp_path / "ornaments.musicxml", _sixteenths_score(measure))
+    song = read_musicxml(path)
+    notes = [(n.pitch, round(n.onset_s, 4), round(n.offset_s, 4)) for n in song.notes]
+    # A one-second trill: nine notes (the most of 0.1 s or more, odd to end on B4).
+    trill = [(71 if k % 2 == 0 else 73, round(k / 9, 4), round((k + 1) / 9, 4)) for k in range(9)]
+    assert notes[:9] == trill
+    assert notes[9:] == [
+        (67, 1.0, 1.1),  # the grace note on the beat, taking its time from E5
+        (76, 1.1, 2.0),
+        (74, 2.0, 2.1),  # the mordent: D5 C#5 D5
+        (73, 2.1, 2.2),
+        (74, 2.2, 3.0),
+        (78, 3.0, 3.1),  # the turn on a half-beat note: F#5 E5 D5 E5, 0.1 s each
+        (76, 3.1, 3.2),
+        (74, 3.2, 3.3),
+        (76, 3.3, 3.5),
+        (69, 3.5, 3.625),  # the tremolo's three strokes: the eighth as four 32nds
+        (69, 3.625, 3.75),
+        (69, 3.75, 3.875),
+        (69, 3.875, 4.0),
+    ]
+    # As written: the grace note left out, every other note once.
+    written = read_musicxml(path, ornaments=False)
+    assert [(n.pitch, n.onset_s, n.offset_s) for n in written.notes] == [
+        (71, 0.0, 1.0),
+        (76, 1.0, 2.0),
+        (74, 2.0, 3.0),
+        (76, 3.0, 3.5),
+        (69, 3.5, 4.0),
+    ]
+    summary = musicxml.score_summary(path)
+    assert summary.once_through_s == 4.0
+    assert summary.ornaments == {
+        "trills": 1,
+        "grace notes": 1,
+        "mordents": 1,
+        "turns": 1,
+        "tremolos": 1,
+    }
+    assert main(["info", str(path)]) == 0
+    assert (
+        "ornaments:  played (1 trills, 1 grace notes, 1 mordents, 1 turns, 1 tremolos)"
+        in capsys.readouterr().out
+    )
+
+
+def test_a_chord_tremolo_repeats_the_chord_and_a_trill_keeps_its_tie(tmp_path: Path) -> None:
+    chord = _ornamented("D", 4, 8, '<tremolo type="single">1</tremolo>')
+    chord += _ornamented("G", 4, 8, '<tremolo type="single">1</tremolo>').replace(
+        "<note>", "<note><chord/>"
+    )
+    trilled = (  # a trilled quarter tied on to a quarter
+        "<note><pitch><step>A</step><octave>4</octave></pitch><duration>4</duration>"
+        '<tie type="start"/><staff>1</staff><notations><tied type="start"/>'
+        "<ornaments><trill-mark/></ornaments></notations></note>"
+        "<note><pitch><step>A</step><octave>4</octave></pitch><duration>4</duration>"
+        '<tie type="stop"/><staff>1</staff><notations><tied type="stop"/></notations></note>'
+    )
+    path = _write(tmp_path / "tremolo.musicxml", _sixteenths_score(chord + trilled))
+    notes = [(n.pitch, n.onset_s, n.offset_s) for n in read_musicxml(path).notes]
+    for pitch in (62, 67):  # D4 G4 struck four times, in eighths
+        assert [(on, off) for p, on, off in notes if p == pitch] == [
+            (0.0, 0.5),
+            (0.5, 1.0),
+            (1.0, 1.5),
+            (1.5, 2.0),
+        ]
+    trill = [note for note in notes if note[1] >= 2.0]
+    assert [p for p, _, _ in trill] == [69, 71] * 4 + [69]
+    assert trill[-1][1:] == (round(2 + 8 / 9, 6), 4.0)  # the last A4 held on through the tie
+
+
 def test_a_metronome_mark_without_a_number_keeps_the_tempo(tmp_path: Path) -> None:
     unnumbered = (
         "<direction><direction-type><metronome><beat-unit>quarter</beat-unit>"
@@ -167,6 +277,63 @@ def test_a_metronome_mark_without_a_number_keeps_the_tempo(tmp_path: Path) -> No
     measure = _note("C", 4, 2) + unnumbered + _note("D", 4, 2)
     song = read_musicxml(_write(tmp_path / "tempo.musicxml", _score(measure)))
     assert [(n.onset_s, n.offset_s) for n in song.notes] == [(0.0, 2.0), (2.0, 4.0)]  # 60 on
+
+
+def _words(text: str) -> str:
+    return f"<direction><direction-type><words>{text}</words></direction-type></direction>"
+
+
+def test_rolled_chords_strike_their_notes_a_frame_apart(tmp_path: Path) -> None:
+    def chord(sign: str) -> str:
+        notes = [_ornamented(step, 4, 4, "") for step in "CEG"]
+        notes = [n.replace("<ornaments></ornaments>", sign) for n in notes]
+        return notes[0] + "".join(n.replace("<note>", "<note><chord/>") for n in notes[1:])
+
+    measure = (
+        chord("<arpeggiate/>")
+        + chord('<arpeggiate direction="down"/>')
+        + chord("<non-arpeggiate/>")
+        + _note("C", 4, 4)
+    )
+    path = _write(tmp_path / "rolled.musicxml", _sixteenths_score(measure))
+    notes = {(n.pitch, n.onset_s, n.offset_s) for n in read_musicxml(path).notes}
+    assert {(60, 0.0, 1.0), (64, 0.05, 1.0), (67, 0.1, 1.0)} <= notes  # up, 50 ms apart
+    assert {(67, 1.0, 2.0), (64, 1.05, 2.0), (60, 1.1, 2.0)} <= notes  # down
+    assert {(60, 2.0, 3.0), (64, 2.0, 3.0), (67, 2.0, 3.0)} <= notes  # a bracket: together
+    assert musicxml.score_summary(path).ornaments == {"rolled chords": 2}
+    assert {n.onset_s for n in read_musicxml(path, ornaments=False).notes} == {0, 1, 2, 3}
+
+
+def test_words_that_name_a_tempo_set_it_where_no_mark_does(tmp_path: Path) -> None:
+    # "Adagio" (quarter = 56 in music21's table), "poco più lento" (a change, not a tempo:
+    # music21 alone reads it as Lento), then "Presto" (184) at the same time as a metronome
+    # mark of 60, which holds.
+    mark = (
+        "<direction><direction-type><metronome><beat-unit>quarter</beat-unit>"
+        '<per-minute>60</per-minute></metronome></direction-type><sound tempo="60"/>'
+        "</direction>"
+    )
+    measure = (
+        _words("Adagio")
+        + _note("C", 4, 1)
+        + _words("poco più lento")
+        + _note("D", 4, 1)
+        + _words("Presto")
+        + mark
+        + _note("E", 4, 2)
+    )
+    text = _score(measure).replace(  # no mark at the start
+        '<direction placement="above"><direction-type><metronome><beat-unit>quarter</beat-unit>'
+        '<per-minute>60</per-minute></metronome></direction-type><sound tempo="60"/></direction>',
+        "",
+    )
+    song = read_musicxml(_write(tmp_path / "words.musicxml", text))
+    beat = 60 / 56
+    assert [(n.onset_s, n.offset_s) for n in song.notes] == [
+        (0.0, round(beat, 6)),
+        (round(beat, 6), round(2 * beat, 6)),
+        (round(2 * beat, 6), round(2 * beat + 2, 6)),
+    ]
 
 
 def test_ties_join_voice_by_voice_and_pitch_by_pitch(tmp_path: Path) -> None:
@@ -595,7 +762,8 @@ def test_info_says_what_the_repeats_add(tmp_path: Path, capsys) -> None:
     assert "repeats:    played (16.00 s once through as written)" in out
     plain = _write(tmp_path / "plain.musicxml", _one_staff_score("C", "D"))
     assert main(["info", str(plain)]) == 0
-    assert "repeats:    none" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "repeats:    none" in out and "ornaments:  none" in out
     lost = _write(tmp_path / "lost.musicxml", _one_staff_score("C", "D|||D.S."))
     assert main(["info", str(lost)]) == 0
     assert "repeats:    not played (see the warning)" in capsys.readouterr().out

@@ -5,12 +5,15 @@ from __future__ import annotations
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Annotated, Literal
+from typing import TYPE_CHECKING, Annotated, Literal
 
 import tyro
 
 from pianist.cli.common import SongArg
 from pianist.cli.common import out as _out
+
+if TYPE_CHECKING:
+    from pianist.music.musicxml import ScoreSummary
 
 
 @dataclass(frozen=True)
@@ -115,9 +118,13 @@ class Info:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             song = load_song(self.song)
-            # What `play` plays by default: the missing hands and fingers estimated.
-            played = song if song.has_full_fingering else load_song(self.song, fingering="auto")
-            once = _once_through(self.song)
+            # What `play` plays by default: the missing hands and fingers estimated (from
+            # the file again only for MIDI, whose tracks hint at the hands; a score is not
+            # parsed twice).
+            is_midi = Path(self.song).suffix.lower() in (".mid", ".midi")
+            source = self.song if is_midi else song
+            played = song if song.has_full_fingering else load_song(source, fingering="auto")
+            summary = _score_summary(self.song)
         problems = list(dict.fromkeys(" ".join(str(w.message).split()) for w in caught))
         problems += [p for p in check_playability(played) if not any(p in q for q in problems)]
         stats = song_stats(played)
@@ -128,7 +135,6 @@ class Info:
         if from_score and song.notes and all(n.hand is not None for n in song.notes):
             hands += " (from the score's staves)"
         elif any(n.hand is None for n in song.notes):
-            is_midi = Path(self.song).suffix.lower() in (".mid", ".midi")
             parts = describe_midi_hands(self.song) if is_midi else None
             if parts is not None:
                 hands += f" (from the MIDI file, {parts})"
@@ -149,13 +155,16 @@ class Info:
             lines.append(
                 f"range:      {pitch_to_name(min(pitches))} - {pitch_to_name(max(pitches))}"
             )
-        if once is not None:  # a score: what its repeats add
+        if summary is not None:  # a score: what its repeats and ornaments add
+            once = summary.once_through_s
             if any("repeats could not be expanded" in problem for problem in problems):
                 lines.append("repeats:    not played (see the warning)")
             elif abs(once - song.duration_s) < 1e-6:
                 lines.append("repeats:    none")
             else:
                 lines.append(f"repeats:    played ({once:.2f} s once through as written)")
+            ornaments = ", ".join(f"{n} {kind}" for kind, n in summary.ornaments.items())
+            lines.append(f"ornaments:  {f'played ({ornaments})' if ornaments else 'none'}")
         lines += [
             f"hands:      {hands}",
             f"fingering:  {fingering}",
@@ -170,13 +179,13 @@ class Info:
         _out("\n".join(lines))
 
 
-def _once_through(song: str) -> float | None:
-    """A score's duration in seconds played once through as written, without its
-    repeats; None for anything else."""
-    from pianist.music import SCORE_SUFFIXES, read_score
-    from pianist.music.musicxml import tune_reference
+def _score_summary(song: str) -> ScoreSummary | None:
+    """A score's duration once through as written and its ornaments
+    (:func:`pianist.music.musicxml.score_summary`); None for anything else."""
+    from pianist.music import SCORE_SUFFIXES
+    from pianist.music.musicxml import score_summary, tune_reference
 
     is_score = Path(song).suffix.lower() in SCORE_SUFFIXES and Path(song).is_file()
     if not is_score and tune_reference(song) is None:
         return None
-    return read_score(song, expand_repeats=False, out_of_range="drop").duration_s
+    return score_summary(song)

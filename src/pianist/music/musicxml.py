@@ -7,7 +7,12 @@ score is read. Reading conventions (a caller should know these):
 - Every part's notes and chords are read, at the pitch they sound (a transposing
   instrument's part, a clarinet in B-flat, is written as its player reads it); tied notes
   are joined, voice by voice and pitch by pitch (in a chord only its tied pitches go on; a
-  tie does not bridge a rest); grace notes (no time of their own) are left out.
+  tie does not bridge a rest).
+- Ornaments are played as a performer plays them (:mod:`pianist.music.ornaments`): grace
+  notes on the beat, trills, mordents, turns and single-note tremolos (on chords too), none
+  of their notes shorter than two of the goal's frames where the written note leaves room;
+  rolled chords one frame per note. A chord's trill, mordent or turn keeps its written
+  notes; ``ornaments=False`` reads every note as written (grace notes left out).
 - Repeats are played as a performer plays them (:mod:`pianist.music.repeats`: repeat signs,
   numbered endings, da capo and dal segno, al fine and al coda; an end-repeat sign without a
   start goes back to just after the previous repeat; an ending bracket without a number is
@@ -16,10 +21,11 @@ score is read. Reading conventions (a caller should know these):
   different numbers of measures) are played once as written, with a warning. Every part
   starts each measure together.
 - Times come from the score's metronome marks (quarter = 120 before the first one, music21's
-  default; a mark without a number keeps the tempo before it). Velocities from the note's own
-  (where the file gives one), else from the part's dynamics marks (p, mf, ff: music21's
-  loudness of each, times 127; sf, fz accent their note; the two staves of a grand staff
-  share their marks), else 80.
+  default; a mark without a number keeps the tempo before it), and from words that name a
+  tempo where no mark does at their time ("Allegro": music21's value for it, quarter = 132).
+  Velocities from the note's own (where the file gives one), else from the part's dynamics
+  marks (p, mf, ff: music21's loudness of each, times 127; sf, fz accent their note; the two
+  staves of a grand staff share their marks), else 80.
 - Sustain-pedal marks are the song's pedal intervals, each from the onset of the first note
   under the mark to the end of the last; a pedal change inside a mark (``<pedal
   type="change">``) lifts the pedal for :data:`PEDAL_CHANGE_S` there.
@@ -54,6 +60,17 @@ from pianist.music.errors import MusicError, one_line
 from pianist.music.fileio import require_file
 from pianist.music.midi import MAX_DURATION_S
 from pianist.music.notes import LEFT, RIGHT, Note, Song
+from pianist.music.ornaments import (
+    ORNAMENT_NOTE_S,
+    ROLL_STEP_S,
+    Played,
+    grace_length,
+    mordent,
+    roll_starts,
+    tremolo,
+    trill,
+    turn,
+)
 from pianist.music.pitch import HIGHEST_PITCH, LOWEST_PITCH, out_of_range_error
 from pianist.music.repeats import Bar, RepeatError, playing_order
 
@@ -138,6 +155,7 @@ def read_score(
     *,
     out_of_range: Literal["error", "drop"] = "error",
     expand_repeats: bool = True,
+    ornaments: bool = True,
 ) -> Song:
     """Read a score into a :class:`Song` (see the module docstring's conventions): MusicXML,
     or Humdrum ``**kern``, ABC or MEI, which music21 parses into the same shape.
@@ -149,6 +167,9 @@ def read_score(
         out_of_range: "error" raises :class:`OutOfRangeError` when any note lies outside MIDI
             21..108; "drop" leaves such notes out.
         expand_repeats: play the repeats (False: once through, as written).
+        ornaments: play grace notes, rolled chords, trills, mordents, turns and tremolos
+            as a performer does (:mod:`pianist.music.ornaments`); False: grace notes are left
+            out and ornamented notes and chords played as written.
 
     Raises:
         MusicError: music21 missing; a missing or unreadable file, or one not of its suffix's
@@ -158,11 +179,74 @@ def read_score(
     """
     if out_of_range not in ("error", "drop"):
         raise ValueError(f"out_of_range must be 'error' or 'drop', got {out_of_range!r}")
+    path, tune, score = _open(path)
+    return _song_of(score, path, tune, out_of_range, expand_repeats, ornaments)
+
+
+class ScoreSummary(NamedTuple):
+    """What a score's reading adds to what it writes (:func:`score_summary`)."""
+
+    #: The song's duration in seconds played once through as written (no repeats).
+    once_through_s: float
+    #: How many of each ornament the score writes that the reader plays, by name in the
+    #: plural ("grace notes", "rolled chords", "trills", "mordents", "turns", "tremolos");
+    #: only those present.
+    ornaments: dict[str, int]
+
+
+def score_summary(path: str | os.PathLike[str]) -> ScoreSummary:
+    """A score's duration once through as written and its ornaments, from one parse (the
+    song itself is :func:`read_score`'s).
+
+    Raises:
+        MusicError: as :func:`read_score`.
+    """
+    path, tune, score = _open(path)
+    written = _song_of(score, path, tune, "drop", expand_repeats=False, ornaments=False)
+    counts: Counter[str] = Counter()
+    for element in score.recurse().notes:
+        if element.duration.isGrace:
+            counts["grace notes"] += 1
+        if _rolls_down(element) is not None:
+            counts["rolled chords"] += 1
+        for mark in element.expressions:
+            kind = next((k for k in _ORNAMENT_KINDS if k in mark.classes), None)
+            if kind is not None and (kind == "Tremolo" or len(element.pitches) == 1):
+                counts[_ORNAMENT_KINDS[kind]] += 1
+                break  # the first ornament is the one played
+    return ScoreSummary(written.duration_s, dict(counts))
+
+
+#: The ornaments the reader plays: music21's class, and the name :class:`ScoreSummary` gives.
+_ORNAMENT_KINDS = {
+    "Trill": "trills",
+    "GeneralMordent": "mordents",
+    "Turn": "turns",
+    "Tremolo": "tremolos",
+}
+
+
+def _open(path: str | os.PathLike[str]) -> tuple[Path, int | None, Any]:
+    """The score's file (a ``BOOK.abc#X`` reference resolved), the ABC tune read (None for
+    one tune or another format) and the parsed score."""
     reference = None if Path(path).exists() else tune_reference(os.fspath(path))
     path, tune = reference if reference is not None else (Path(path), None)
     music21_format, kind = _FORMATS.get(path.suffix.lower(), _FORMATS[".musicxml"])
     require_file(path, MusicError, f"{kind} file")
     score, tune = _parse(path, tune, music21_format, kind)
+    return path, tune, score
+
+
+def _song_of(
+    score: Any,
+    path: Path,
+    tune: int | None,
+    out_of_range: Literal["error", "drop"],
+    expand_repeats: bool,
+    ornaments: bool,
+) -> Song:
+    """The song a parsed score plays (:func:`read_score`'s options; ``path`` and ``tune``
+    name it and its errors)."""
     parts = list(getattr(score, "parts", ())) or [score]
     raw: list[RawNote] = []
     with _as_music_error(path):
@@ -174,7 +258,7 @@ def read_score(
         for measures, hand, loudness in zip(
             played, _hands_of_parts(parts), _loudness(played, parts, events), strict=True
         ):
-            raw.extend(_part_notes(measures, hand, seconds, playings, events, loudness))
+            raw.extend(_part_notes(measures, hand, seconds, playings, events, loudness, ornaments))
         sustain = _pedal_intervals(_sustain_marks(score), playings, seconds)
     outside = [r for r in raw if not LOWEST_PITCH <= r[0] <= HIGHEST_PITCH]
     if outside and out_of_range == "error":
@@ -581,11 +665,15 @@ def _part_notes(
     playings: dict[int, list[tuple[float, float]]],
     events: dict[int, list[_Event]],
     loudness: Callable[[float], int | None],
+    ornaments: bool,
 ) -> list[RawNote]:
-    """The notes of one part (a staff) as played, ties joined, grace notes left out; each
-    note's and pedal change's playings are added to ``playings`` (see :func:`_pedal_intervals`).
-    ``events`` holds each measure's events (:func:`_measure_events`), ``loudness`` the
-    velocity the part's dynamics give at a time as played (:func:`_loudness`).
+    """The notes of one part (a staff) as played, ties joined; each note's and pedal
+    change's playings are added to ``playings`` (see :func:`_pedal_intervals`). ``events``
+    holds each measure's events (:func:`_measure_events`), ``loudness`` the velocity the
+    part's dynamics give at a time as played (:func:`_loudness`). With ``ornaments`` the
+    grace notes, rolled chords, trills, mordents, turns and tremolos are played
+    (:mod:`pianist.music.ornaments`); without, grace notes are left out and the rest played
+    as their written note.
 
     Ties are joined here, voice by voice and pitch by pitch, in one pass over the part's notes
     in time order: music21's ``stripTies`` copies the part and searches its spanners for every
@@ -593,17 +681,40 @@ def _part_notes(
     chord's notes only all together, and bridges rests."""
     entries: list[list[Any]] = []  # [pitch, onset ql, offset ql, velocity, finger]
     tied: dict[tuple[str | None, int], list[Any]] = {}  # (voice, pitch) -> the tied entry
+    graces: dict[str | None, list[tuple[float, Any]]] = {}  # voice -> graces before its note
     for measure, start in played:
         for offset, element, voice, kind, source in events[id(measure)]:
-            if kind in ("tempo", "dynamic"):
+            if kind in ("tempo", "tempo words", "dynamic"):
                 continue
             onset = start + offset
             length = float(element.duration.quarterLength)
             playings.setdefault(source, []).append((onset, onset + length))
-            if kind != "note" or length <= 0:  # grace notes have no time of their own
+            if kind != "note":
+                continue
+            if length <= 0:  # a grace note: played before the next note of its voice
+                if ornaments:
+                    graces.setdefault(voice, []).append((onset, element))
                 continue
             velocity = int(element.volume.velocity or loudness(onset) or DEFAULT_VELOCITY)
+            quarters_per_s = 1.0 / _seconds_per_quarter(seconds, onset)
+            unit = ORNAMENT_NOTE_S * quarters_per_s if ornaments else 0.0  # ornaments' pace
+            # Grace notes at this note's onset take their time from its start; others (a grace
+            # note before a rest, or left at a part's end) are left out.
+            before = [g for at, g in graces.pop(voice, []) if abs(at - onset) <= 1e-9]
+            lead = 0.0
+            if before:
+                each = grace_length(len(before), length, unit)
+                for k, grace in enumerate(before):
+                    for p in grace.pitches:
+                        at = onset + k * each
+                        entries.append([p.midi, at, at + each, velocity, None])
+                lead = len(before) * each
             pitches = [p.midi for p in element.pitches]
+            delays = dict.fromkeys(pitches, 0.0)  # when each pitch starts after the onset
+            if ornaments:
+                delays.update(
+                    _rolled(element, pitches, length - lead, ROLL_STEP_S * quarters_per_s)
+                )
             ties = _ties(element, len(pitches))
             fingers = _finger_numbers(element)
             if len(fingers) != len(pitches):
@@ -621,48 +732,129 @@ def _part_notes(
                 finger = None
                 if hand is not None and number is not None:
                     finger = number - 1 + (0 if hand == RIGHT else 5)
-                entry = [pitch, onset, onset + length, velocity, finger]
-                entries.append(entry)
+                begin = onset + lead + delays[pitch]
+                rest = length - lead - delays[pitch]
+                sounds = (_ornament_notes(element, pitch, rest, unit) if ornaments else None) or [
+                    (pitch, 0.0, rest)
+                ]
+                # The written note's finger plays each of its own strokes; the ornament's
+                # other notes are fingered like unfingered notes.
+                played_notes = [
+                    [p, begin + a, begin + b, velocity, finger if p == pitch else None]
+                    for p, a, b in sounds
+                ]
+                entries.extend(played_notes)
                 if tie in ("start", "continue"):
-                    tied[(voice, pitch)] = entry
+                    tied[(voice, pitch)] = played_notes[-1]  # the ornament ends on the note
     return [
         (pitch, seconds(onset), seconds(offset), velocity, hand, finger)
         for pitch, onset, offset, velocity, finger in entries
     ]
 
 
+def _seconds_per_quarter(seconds: Callable[[float], float], ql: float) -> float:
+    """The tempo at ``ql`` (quarter lengths as played) as seconds per quarter length."""
+    return (seconds(ql + 1e-3) - seconds(ql)) / 1e-3
+
+
+def _ornament_notes(element: Any, pitch: int, length: float, unit: float) -> list[Played] | None:
+    """The notes that ``pitch`` of a note or chord plays for the element's first ornament
+    (:mod:`pianist.music.ornaments`) over ``length`` quarter lengths at the pace ``unit``: a
+    tremolo's repetitions (each pitch of a chord repeated), or a single note's trill,
+    mordent or turn; None where there is none, on a chord's other ornaments, or on a mark
+    music21 cannot resolve (the written note is played)."""
+    for mark in element.expressions:
+        classes = set(mark.classes)
+        if "Tremolo" in classes:
+            return tremolo(pitch, length, int(mark.numberOfMarks), unit)
+        if not classes & {"Trill", "GeneralMordent", "Turn"} or len(element.pitches) != 1:
+            continue
+        try:
+            mark.resolveOrnamentalPitches(element)  # the key's and the sign's accidentals
+            others = [p.midi for p in mark.ornamentalPitches]
+        except Exception:  # music21 raises many types on marks it cannot resolve
+            return None
+        if "Trill" in classes and others:
+            return trill(pitch, others[0], length, unit)
+        if "GeneralMordent" in classes and others:
+            return mordent(pitch, others[0], length, unit)
+        if "Turn" in classes and len(others) == 2:
+            upper, lower = others
+            first, second = (lower, upper) if "InvertedTurn" in classes else (upper, lower)
+            delayed = str(mark.delay) != "noDelay"
+            return turn(pitch, first, second, length, unit, delayed=delayed)
+    return None
+
+
+def _rolled(element: Any, pitches: list[int], length: float, step: float) -> dict[int, float]:
+    """When each pitch of a rolled chord starts after its onset, in quarter lengths
+    (:func:`pianist.music.ornaments.roll_starts`: from the lowest, or the highest for a
+    downward roll, ``step`` apart); empty for a chord not rolled (:func:`_rolls_down`)."""
+    down = _rolls_down(element)
+    if down is None:
+        return {}
+    order = sorted(set(pitches), reverse=down)
+    return dict(zip(order, roll_starts(len(order), length, step), strict=True))
+
+
+def _rolls_down(element: Any) -> bool | None:
+    """Whether a chord's arpeggio sign rolls it downwards (True) or upwards (False); None for a
+    single note, a chord without one, or with the bracket that says not to roll it."""
+    if len(element.pitches) < 2:
+        return None
+    for mark in element.expressions:
+        if "ArpeggioMark" in mark.classes and mark.type != "non-arpeggio":
+            return bool(mark.type == "down")
+    return None
+
+
 class _Event(NamedTuple):
     """What a measure holds at a time: its offset in the measure (quarter lengths), the
     music21 element, its voice, its kind ("note" for a note or chord, "other" for a rest or a
-    pedal change, "tempo", "dynamic"), and the ``id`` of the element a pedal mark names for it
-    (music21 gives the staves of a grand staff copies of a pedal change, derived from the one
-    the mark holds)."""
+    pedal change, "tempo" for a tempo indication, "tempo words" for words that name a tempo,
+    "dynamic"), and the ``id`` of the element a pedal mark names for it (music21 gives the
+    staves of a grand staff copies of a pedal change, derived from the one the mark holds)."""
 
     offset: float
     element: Any
     voice: str | None
-    kind: Literal["note", "other", "tempo", "dynamic"]
+    kind: _EventKind
     source: int
 
 
+_EventKind = Literal["note", "other", "tempo", "tempo words", "dynamic"]
+
+
 def _measure_events(measure: Any) -> list[_Event]:
-    """A measure's notes, chords, rests, pedal changes, tempo indications and dynamics, in time
-    order (through its voices)."""
+    """A measure's notes, chords, rests, pedal changes, tempo indications (words that name a
+    tempo as the metronome mark they stand for) and dynamics, in time order (through its
+    voices)."""
+    from music21 import tempo
+
     voice_of = {id(e): _voice(e) for e in measure.recurse().notes}  # before flattening
     flat = measure.flatten()  # its offsets are the measure's
     notes = {id(e) for e in flat.notes}
-    classes = ("GeneralNote", "PedalBounce", "TempoIndication", "Dynamic")
+    classes = ("GeneralNote", "PedalBounce", "TempoIndication", "Dynamic", "TextExpression")
     events = []
     for e in flat.getElementsByClass(classes):
-        kind: Literal["note", "other", "tempo", "dynamic"] = (
+        kind: _EventKind = (
             "note"
             if id(e) in notes
             else "tempo"
             if "TempoIndication" in e.classes
             else "dynamic"
             if "Dynamic" in e.classes
+            else "tempo words"
+            if "TextExpression" in e.classes
             else "other"
         )
+        if kind == "tempo words":
+            bpm = _words_bpm(str(e.content))
+            if bpm is None:
+                continue  # words that name no tempo ("dolce", "a tempo", "rit.")
+            named = tempo.MetronomeMark(number=bpm, referent=1.0)  # the tempo they name
+            events.append(_Event(float(e.offset), named, None, kind, id(e)))
+            continue
         source = id(e.derivation.rootDerivation or e)
         events.append(_Event(float(e.offset), e, voice_of.get(id(e)), kind, source))
     return events
@@ -674,15 +866,38 @@ def _tempo_map(
     """The map from a time as played (quarter lengths from the start) to seconds, through the
     metronome marks (and other tempo indications) of every part as played: quarter = 120
     before the first (music21's default), and a mark without a number keeps the tempo before
-    it. Of marks at one time the last part's holds."""
-    changes: list[tuple[float, float | None]] = []
+    it. Of marks at one time the last part's holds. Words that name a tempo without a mark
+    ("Allegro", "Langsam": :func:`_words_bpm`) set it where no mark does at their time."""
+    marks: list[tuple[float, float | None]] = []
+    words: list[tuple[float, float | None]] = []
     for measures in played:
         for measure, start in measures:
             for event in events[id(measure)]:
                 if event.kind == "tempo":
                     bpm = event.element.getSoundingMetronomeMark().getQuarterBPM()
-                    changes.append((start + event.offset, bpm))
-    return _seconds_through(changes)
+                    marks.append((start + event.offset, bpm))
+                elif event.kind == "tempo words":
+                    words.append((start + event.offset, event.element.getQuarterBPM()))
+    return _seconds_through(words + marks)  # at one time the later (a mark) holds
+
+
+#: Words that change the tempo against the one before ("più", "piu", "meno"), not name one.
+_RELATIVE_TEMPO = re.compile(r"\b(più|piu|meno)\b", re.IGNORECASE)
+
+
+def _words_bpm(words: str) -> float | None:
+    """The tempo, in quarter notes per minute, that a text expression's words name: "Allegro
+    ma non troppo" gives music21's value for Allegro, 132; None for words that name none, or
+    only a change ("poco più lento", "meno mosso": music21 would read the first as Lento).
+    The value counts quarter notes in every metre, as music21's table does: in alla breve,
+    fast words then read slower than they are played (Presto in 2/2 at quarter = 184 is
+    half = 92), where counting half notes would read them twice as fast (half = 184)."""
+    from music21 import tempo
+
+    if _RELATIVE_TEMPO.search(words):
+        return None
+    bpm = tempo.MetronomeMark(text=words).getQuarterBPM()
+    return None if bpm is None else float(bpm)
 
 
 def _seconds_through(changes: list[tuple[float, float | None]]) -> Callable[[float], float]:
