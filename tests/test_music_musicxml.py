@@ -238,9 +238,35 @@ def test_ornaments_are_played_as_a_performer_plays_them(tmp_path: Path, capsys) 
     }
     assert main(["info", str(path)]) == 0
     assert (
-        "ornaments:  played (1 trills, 1 grace notes, 1 mordents, 1 turns, 1 tremolos)"
+        "ornaments:  1 trills, 1 grace notes, 1 mordents, 1 turns, 1 tremolos (played; any quicker"
         in capsys.readouterr().out
     )
+
+
+def test_ornaments_too_quick_for_the_goals_frames_are_played_as_written(tmp_path: Path) -> None:
+    grace = (
+        '<note><grace slash="yes"/><pitch><step>G</step><octave>4</octave></pitch>'
+        "<staff>1</staff></note>"
+    )
+    measure = (  # in 32nds (divisions 8) at quarter = 60
+        _ornamented("B", 4, 1, "<trill-mark/>")  # 0.125 s: three notes would be 42 ms each
+        + grace
+        + grace
+        + _note("E", 5, 1)  # two grace notes would be 31 ms each
+        + _ornamented("B", 4, 2, "<trill-mark/>")  # 0.25 s: three notes of 83 ms
+        + _note("E", 5, 28)
+    )
+    text = _sixteenths_score(measure).replace(
+        "<divisions>4</divisions>", "<divisions>8</divisions>"
+    )
+    song = read_musicxml(_write(tmp_path / "quick.musicxml", text))
+    assert [(n.pitch, n.onset_s) for n in song.notes][:5] == [
+        (71, 0.0),
+        (76, 0.125),
+        (71, 0.25),
+        (73, round(0.25 + 0.25 / 3, 6)),
+        (71, round(0.25 + 0.5 / 3, 6)),
+    ]
 
 
 def test_a_chord_tremolo_repeats_the_chord_and_a_trill_keeps_its_tie(tmp_path: Path) -> None:
@@ -304,6 +330,27 @@ def test_rolled_chords_strike_their_notes_a_frame_apart(tmp_path: Path) -> None:
     assert {n.onset_s for n in read_musicxml(path, ornaments=False).notes} == {0, 1, 2, 3}
 
 
+def test_a_roll_across_both_staves_goes_through_both_hands(tmp_path: Path) -> None:
+    def rolled(step: str, octave: int, staff: int, chord: bool = False) -> str:
+        note = _note(step, octave, 4, staff=staff, chord=chord)
+        return note.replace("</note>", '<notations><arpeggiate number="1"/></notations></note>')
+
+    measure = (
+        rolled("C", 5, 1)
+        + rolled("E", 5, 1, chord=True)
+        + "<backup><duration>4</duration></backup>"
+        + rolled("C", 3, 2)
+        + rolled("G", 3, 2, chord=True)
+    )
+    song = read_musicxml(_write(tmp_path / "both.musicxml", _score(measure)))
+    assert [(n.pitch, n.onset_s, n.offset_s, n.hand) for n in song.notes] == [
+        (48, 0.0, 4.0, "left"),
+        (55, 0.05, 4.0, "left"),
+        (72, 0.1, 4.0, "right"),
+        (76, 0.15, 4.0, "right"),
+    ]
+
+
 def test_words_that_name_a_tempo_set_it_where_no_mark_does(tmp_path: Path) -> None:
     # "Adagio" (quarter = 56 in music21's table), "poco più lento" (a change, not a tempo:
     # music21 alone reads it as Lento), then "Presto" (184) at the same time as a metronome
@@ -334,6 +381,39 @@ def test_words_that_name_a_tempo_set_it_where_no_mark_does(tmp_path: Path) -> No
         (round(beat, 6), round(2 * beat, 6)),
         (round(2 * beat, 6), round(2 * beat + 2, 6)),
     ]
+
+
+def test_a_fermata_holds_its_note_twice_as_long_and_every_part_waits(tmp_path: Path) -> None:
+    def held(note: str) -> str:
+        return note.replace("</note>", '<notations><fermata type="upright"/></notations></note>')
+
+    # Upper staff: C5 under a fermata, then D5 E5 F5; lower staff: C3 for two beats, then G3
+    # under a fermata on the last half note of the measure.
+    measure = (
+        held(_note("C", 5, 1))
+        + _note("D", 5, 1)
+        + _note("E", 5, 1)
+        + _note("F", 5, 1)
+        + "<backup><duration>4</duration></backup>"
+        + _note("C", 3, 2, staff=2)
+        + held(_note("G", 3, 2, staff=2))
+    )
+    path = _write(tmp_path / "fermata.musicxml", _score(measure))
+    notes = [(n.pitch, n.onset_s, n.offset_s) for n in read_musicxml(path).notes]
+    assert notes == [
+        (48, 0.0, 3.0),  # two beats, one of them held: 3 s
+        (72, 0.0, 2.0),  # the fermata: one beat held for two seconds
+        (74, 2.0, 3.0),
+        (55, 3.0, 7.0),  # the last two beats held: 4 s, the upper staff's notes with them
+        (76, 3.0, 5.0),
+        (77, 5.0, 7.0),
+    ]
+    written = [(n.pitch, n.onset_s) for n in read_musicxml(path, fermatas=False).notes]
+    assert written == [(48, 0.0), (72, 0.0), (74, 1.0), (55, 2.0), (76, 2.0), (77, 3.0)]
+    # At quarter = 30 the half note's 4 s are held only 2 s longer (the most a hold adds).
+    slow = _score(measure).replace("60<", "30<").replace('tempo="60"', 'tempo="30"')
+    notes = [(n.pitch, n.onset_s, n.offset_s) for n in read_musicxml(_write(path, slow)).notes]
+    assert notes[3:] == [(55, 6.0, 12.0), (76, 6.0, 9.0), (77, 9.0, 12.0)]
 
 
 def test_ties_join_voice_by_voice_and_pitch_by_pitch(tmp_path: Path) -> None:

@@ -164,7 +164,8 @@ class Info:
             else:
                 lines.append(f"repeats:    played ({once:.2f} s once through as written)")
             ornaments = ", ".join(f"{n} {kind}" for kind, n in summary.ornaments.items())
-            lines.append(f"ornaments:  {f'played ({ornaments})' if ornaments else 'none'}")
+            played_as = " (played; any quicker than a frame as written)" if ornaments else ""
+            lines.append(f"ornaments:  {ornaments or 'none'}{played_as}")
         lines += [
             f"hands:      {hands}",
             f"fingering:  {fingering}",

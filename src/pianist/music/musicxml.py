@@ -23,6 +23,7 @@ score is read. Reading conventions (a caller should know these):
 - Times come from the score's metronome marks (quarter = 120 before the first one, music21's
   default; a mark without a number keeps the tempo before it), and from words that name a
   tempo where no mark does at their time ("Allegro": music21's value for it, quarter = 132).
+  A fermata holds its note or rest twice as long (at most 2 s longer), every part waiting.
   Velocities from the note's own (where the file gives one), else from the part's dynamics
   marks (p, mf, ff: music21's loudness of each, times 127; sf, fz accent their note; the two
   staves of a grand staff share their marks), else 80.
@@ -63,6 +64,7 @@ from pianist.music.notes import LEFT, RIGHT, Note, Song
 from pianist.music.ornaments import (
     ORNAMENT_NOTE_S,
     ROLL_STEP_S,
+    SHORTEST_NOTE_S,
     Played,
     grace_length,
     mordent,
@@ -156,6 +158,7 @@ def read_score(
     out_of_range: Literal["error", "drop"] = "error",
     expand_repeats: bool = True,
     ornaments: bool = True,
+    fermatas: bool = True,
 ) -> Song:
     """Read a score into a :class:`Song` (see the module docstring's conventions): MusicXML,
     or Humdrum ``**kern``, ABC or MEI, which music21 parses into the same shape.
@@ -170,6 +173,8 @@ def read_score(
         ornaments: play grace notes, rolled chords, trills, mordents, turns and tremolos
             as a performer does (:mod:`pianist.music.ornaments`); False: grace notes are left
             out and ornamented notes and chords played as written.
+        fermatas: hold the notes and rests under a fermata :data:`FERMATA_HOLD` times as
+            long (every part waits); False: as written.
 
     Raises:
         MusicError: music21 missing; a missing or unreadable file, or one not of its suffix's
@@ -180,7 +185,7 @@ def read_score(
     if out_of_range not in ("error", "drop"):
         raise ValueError(f"out_of_range must be 'error' or 'drop', got {out_of_range!r}")
     path, tune, score = _open(path)
-    return _song_of(score, path, tune, out_of_range, expand_repeats, ornaments)
+    return _song_of(score, path, tune, out_of_range, expand_repeats, ornaments, fermatas)
 
 
 class ScoreSummary(NamedTuple):
@@ -188,9 +193,9 @@ class ScoreSummary(NamedTuple):
 
     #: The song's duration in seconds played once through as written (no repeats).
     once_through_s: float
-    #: How many of each ornament the score writes that the reader plays, by name in the
-    #: plural ("grace notes", "rolled chords", "trills", "mordents", "turns", "tremolos");
-    #: only those present.
+    #: How many of each ornament of the kinds the reader plays the score writes, by name in
+    #: the plural ("grace notes", "rolled chords", "trills", "mordents", "turns", "tremolos");
+    #: only those present. (Ornaments too quick for the goal's frames are played as written.)
     ornaments: dict[str, int]
 
 
@@ -202,12 +207,12 @@ def score_summary(path: str | os.PathLike[str]) -> ScoreSummary:
         MusicError: as :func:`read_score`.
     """
     path, tune, score = _open(path)
-    written = _song_of(score, path, tune, "drop", expand_repeats=False, ornaments=False)
+    written = _song_of(score, path, tune, "drop", False, ornaments=False, fermatas=True)
     counts: Counter[str] = Counter()
     for element in score.recurse().notes:
         if element.duration.isGrace:
             counts["grace notes"] += 1
-        if _rolls_down(element) is not None:
+        if _roll(element) is not None:
             counts["rolled chords"] += 1
         for mark in element.expressions:
             kind = next((k for k in _ORNAMENT_KINDS if k in mark.classes), None)
@@ -244,6 +249,7 @@ def _song_of(
     out_of_range: Literal["error", "drop"],
     expand_repeats: bool,
     ornaments: bool,
+    fermatas: bool,
 ) -> Song:
     """The song a parsed score plays (:func:`read_score`'s options; ``path`` and ``tune``
     name it and its errors)."""
@@ -253,7 +259,7 @@ def _song_of(
         _put_at_sounding_pitch(score, parts, path)
         played = _played_measures(parts, expand_repeats, path)
         events = {id(m): _measure_events(m) for measures in played for m, _ in measures}
-        seconds = _tempo_map(played, events)
+        seconds = _tempo_map(played, events, fermatas)
         playings: dict[int, list[tuple[float, float]]] = {}
         for measures, hand, loudness in zip(
             played, _hands_of_parts(parts), _loudness(played, parts, events), strict=True
@@ -698,11 +704,12 @@ def _part_notes(
             velocity = int(element.volume.velocity or loudness(onset) or DEFAULT_VELOCITY)
             quarters_per_s = 1.0 / _seconds_per_quarter(seconds, onset)
             unit = ORNAMENT_NOTE_S * quarters_per_s if ornaments else 0.0  # ornaments' pace
+            shortest = SHORTEST_NOTE_S * quarters_per_s
             # Grace notes at this note's onset take their time from its start; others (a grace
-            # note before a rest, or left at a part's end) are left out.
+            # note before a rest, or left at a part's end, or too quick to show) are left out.
             before = [g for at, g in graces.pop(voice, []) if abs(at - onset) <= 1e-9]
             lead = 0.0
-            if before:
+            if before and grace_length(len(before), length, unit) >= shortest - 1e-9:
                 each = grace_length(len(before), length, unit)
                 for k, grace in enumerate(before):
                     for p in grace.pitches:
@@ -712,9 +719,7 @@ def _part_notes(
             pitches = [p.midi for p in element.pitches]
             delays = dict.fromkeys(pitches, 0.0)  # when each pitch starts after the onset
             if ornaments:
-                delays.update(
-                    _rolled(element, pitches, length - lead, ROLL_STEP_S * quarters_per_s)
-                )
+                delays.update(_rolled(element, length - lead, ROLL_STEP_S * quarters_per_s))
             ties = _ties(element, len(pitches))
             fingers = _finger_numbers(element)
             if len(fingers) != len(pitches):
@@ -734,9 +739,9 @@ def _part_notes(
                     finger = number - 1 + (0 if hand == RIGHT else 5)
                 begin = onset + lead + delays[pitch]
                 rest = length - lead - delays[pitch]
-                sounds = (_ornament_notes(element, pitch, rest, unit) if ornaments else None) or [
-                    (pitch, 0.0, rest)
-                ]
+                sounds = _ornament_notes(element, pitch, rest, unit) if ornaments else None
+                if not sounds or min(b - a for _, a, b in sounds) < shortest - 1e-9:
+                    sounds = [(pitch, 0.0, rest)]  # no ornament, or one too quick to show
                 # The written note's finger plays each of its own strokes; the ornament's
                 # other notes are fingered like unfingered notes.
                 played_notes = [
@@ -786,25 +791,32 @@ def _ornament_notes(element: Any, pitch: int, length: float, unit: float) -> lis
     return None
 
 
-def _rolled(element: Any, pitches: list[int], length: float, step: float) -> dict[int, float]:
+def _rolled(element: Any, length: float, step: float) -> dict[int, float]:
     """When each pitch of a rolled chord starts after its onset, in quarter lengths
-    (:func:`pianist.music.ornaments.roll_starts`: from the lowest, or the highest for a
-    downward roll, ``step`` apart); empty for a chord not rolled (:func:`_rolls_down`)."""
-    down = _rolls_down(element)
-    if down is None:
+    (:func:`pianist.music.ornaments.roll_starts`: from the lowest of the roll's pitches, or
+    the highest for a downward roll, ``step`` apart); empty for a note or chord not rolled
+    (:func:`_roll`)."""
+    roll = _roll(element)
+    if roll is None:
         return {}
+    down, pitches = roll
     order = sorted(set(pitches), reverse=down)
     return dict(zip(order, roll_starts(len(order), length, step), strict=True))
 
 
-def _rolls_down(element: Any) -> bool | None:
-    """Whether a chord's arpeggio sign rolls it downwards (True) or upwards (False); None for a
-    single note, a chord without one, or with the bracket that says not to roll it."""
-    if len(element.pitches) < 2:
-        return None
-    for mark in element.expressions:
-        if "ArpeggioMark" in mark.classes and mark.type != "non-arpeggio":
-            return bool(mark.type == "down")
+def _roll(element: Any) -> tuple[bool, list[int]] | None:
+    """A rolled chord's direction (True: downwards) and every pitch its roll spans: a roll
+    across both staves (music21's ``ArpeggioMarkSpanner``) spans the notes and chords of
+    both, an arpeggio sign on one chord that chord's. None for a note or chord not rolled,
+    or under the bracket that says not to roll it."""
+    for spanner in element.getSpannerSites():
+        if "ArpeggioMarkSpanner" in spanner.classes and spanner.type != "non-arpeggio":
+            spanned = spanner.getSpannedElements()
+            return spanner.type == "down", [p.midi for e in spanned for p in e.pitches]
+    if len(element.pitches) > 1:
+        for mark in element.expressions:
+            if "ArpeggioMark" in mark.classes and mark.type != "non-arpeggio":
+                return mark.type == "down", [p.midi for p in element.pitches]
     return None
 
 
@@ -861,24 +873,70 @@ def _measure_events(measure: Any) -> list[_Event]:
 
 
 def _tempo_map(
-    played: list[list[_Playing]], events: dict[int, list[_Event]]
+    played: list[list[_Playing]], events: dict[int, list[_Event]], fermatas: bool
 ) -> Callable[[float], float]:
     """The map from a time as played (quarter lengths from the start) to seconds, through the
     metronome marks (and other tempo indications) of every part as played: quarter = 120
     before the first (music21's default), and a mark without a number keeps the tempo before
     it. Of marks at one time the last part's holds. Words that name a tempo without a mark
-    ("Allegro", "Langsam": :func:`_words_bpm`) set it where no mark does at their time."""
+    ("Allegro", "Langsam": :func:`_words_bpm`) set it where no mark does at their time. With
+    ``fermatas``, the time under a fermata in any part is held longer (:func:`_held`)."""
     marks: list[tuple[float, float | None]] = []
     words: list[tuple[float, float | None]] = []
+    holds: list[tuple[float, float]] = []
     for measures in played:
         for measure, start in measures:
             for event in events[id(measure)]:
+                at = start + event.offset
                 if event.kind == "tempo":
                     bpm = event.element.getSoundingMetronomeMark().getQuarterBPM()
-                    marks.append((start + event.offset, bpm))
+                    marks.append((at, bpm))
                 elif event.kind == "tempo words":
-                    words.append((start + event.offset, event.element.getQuarterBPM()))
-    return _seconds_through(words + marks)  # at one time the later (a mark) holds
+                    words.append((at, event.element.getQuarterBPM()))
+                elif fermatas and any(
+                    "Fermata" in mark.classes for mark in getattr(event.element, "expressions", ())
+                ):
+                    holds.append((at, at + float(event.element.duration.quarterLength)))
+    seconds = _seconds_through(words + marks)  # at one time the later (a mark) holds
+    return _held(seconds, holds) if holds else seconds
+
+
+#: How much longer than written a note or rest under a fermata lasts (a pianist holds one
+#: about twice its value), and the most it adds, in seconds (a final whole note is not held
+#: for twice its length at a slow tempo).
+FERMATA_HOLD = 2.0
+FERMATA_MAX_EXTRA_S = 2.0
+
+
+def _held(
+    seconds: Callable[[float], float], holds: list[tuple[float, float]]
+) -> Callable[[float], float]:
+    """``seconds`` (quarter lengths to seconds) with the time inside each hold (start, end in
+    quarter lengths; overlapping ones, the parts' fermatas over one chord, joined) stretched
+    :data:`FERMATA_HOLD` times, adding at most :data:`FERMATA_MAX_EXTRA_S` each."""
+    joined: list[list[float]] = []
+    for begin, end in sorted(holds):
+        if joined and begin <= joined[-1][1]:
+            joined[-1][1] = max(joined[-1][1], end)
+        elif end > begin:
+            joined.append([begin, end])
+    starts = [begin for begin, _ in joined]
+    stretch, before = [], [0.0]  # per hold: the factor on its time; extra seconds before it
+    for begin, end in joined:
+        written = seconds(end) - seconds(begin)
+        extra = min((FERMATA_HOLD - 1.0) * written, FERMATA_MAX_EXTRA_S)
+        stretch.append(extra / written if written > 0 else 0.0)
+        before.append(before[-1] + extra)
+
+    def held(ql: float) -> float:
+        k = bisect.bisect_right(starts, ql) - 1
+        if k < 0:
+            return seconds(ql)
+        begin, end = joined[k]
+        inside = seconds(min(ql, end)) - seconds(begin)
+        return seconds(ql) + before[k] + stretch[k] * inside
+
+    return held
 
 
 #: Words that change the tempo against the one before ("più", "piu", "meno"), not name one.

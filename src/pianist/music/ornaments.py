@@ -10,7 +10,9 @@ note leaves room, and the reader sets ``unit`` to :data:`ORNAMENT_NOTE_S` at the
 A pianist's trill runs at 8-12 notes a second; the goal's frames are 20 a second, so a
 note of 0.1 s is two frames, the fastest a key is pressed, released and pressed again
 cleanly at the environment's control rate. Where the written note is too short for that pace
-the ornament's notes share it evenly (a trill on a short note still has its three notes).
+the ornament's notes share it evenly (a trill on a short note still has its three notes),
+down to :data:`SHORTEST_NOTE_S`: the reader plays an ornament whose notes would be shorter
+as its written note, and leaves such grace notes out (the goal could not show them).
 
 Conventions (the common modern ones; a reader wanting others writes the notes out):
 
@@ -26,7 +28,8 @@ Conventions (the common modern ones; a reader wanting others writes the notes ou
 - grace notes: on the beat, before their note, which they shorten; each at the pace, and
   together at most half of their note;
 - a rolled (arpeggiated) chord: its notes struck one after another from the lowest (from
-  the highest for a downward roll), :data:`ROLL_STEP_S` apart, all held to the chord's end.
+  the highest for a downward roll), :data:`ROLL_STEP_S` apart, all held to the chord's end
+  (a roll across both staves goes through both hands' notes).
 """
 
 from __future__ import annotations
@@ -36,6 +39,9 @@ import math
 #: Shortest ornament or grace note, in seconds, where the written note leaves room: two of the
 #: goal's 20 Hz frames (see the module docstring).
 ORNAMENT_NOTE_S = 0.1
+
+#: Shortest ornament or grace note, in seconds: one of the goal's 20 Hz frames.
+SHORTEST_NOTE_S = 0.05
 
 #: Time between the notes of a rolled chord, in seconds: one of the goal's frames (a pianist's
 #: roll spreads its notes 30-60 ms apart).
