@@ -282,6 +282,17 @@ def test_a_chord_tremolo_repeats_the_chord_and_a_trill_keeps_its_tie(tmp_path: P
         '<tie type="stop"/><staff>1</staff><notations><tied type="stop"/></notations></note>'
     )
     path = _write(tmp_path / "tremolo.musicxml", _sixteenths_score(chord + trilled))
+    between = (  # a two-note tremolo over a whole measure: C4 and the chord E4 G4, in eighths
+        _ornamented("C", 4, 8, '<tremolo type="start">1</tremolo>')
+        + _ornamented("E", 4, 8, '<tremolo type="stop">1</tremolo>')
+        + _ornamented("G", 4, 8, '<tremolo type="stop">1</tremolo>').replace(
+            "<note>", "<note><chord/>"
+        )
+    )
+    two = read_musicxml(_write(tmp_path / "between.musicxml", _sixteenths_score(between)))
+    assert [(n.pitch, n.onset_s) for n in two.notes] == [
+        (p, k / 2) for k in range(8) for p in ((60,) if k % 2 == 0 else (64, 67))
+    ]
     notes = [(n.pitch, n.onset_s, n.offset_s) for n in read_musicxml(path).notes]
     for pitch in (62, 67):  # D4 G4 struck four times, in eighths
         assert [(on, off) for p, on, off in notes if p == pitch] == [
@@ -414,6 +425,32 @@ def test_a_fermata_holds_its_note_twice_as_long_and_every_part_waits(tmp_path: P
     slow = _score(measure).replace("60<", "30<").replace('tempo="60"', 'tempo="30"')
     notes = [(n.pitch, n.onset_s, n.offset_s) for n in read_musicxml(_write(path, slow)).notes]
     assert notes[3:] == [(55, 6.0, 12.0), (76, 6.0, 9.0), (77, 9.0, 12.0)]
+
+
+def test_articulations_shorten_and_accent_their_notes(tmp_path: Path) -> None:
+    def marked(note: str, marks: str) -> str:
+        return note.replace(
+            "</note>", f"<notations><articulations>{marks}</articulations></notations></note>"
+        )
+
+    measure = (
+        marked(_note("C", 4, 1), "<staccato/>")
+        + marked(_note("D", 4, 1), "<staccatissimo/>")
+        + marked(_note("E", 4, 1), "<accent/>")
+        + marked(_note("F", 4, 1), "<tenuto/>")
+    )
+    path = _write(tmp_path / "marks.musicxml", _score(measure))
+    notes = [(n.pitch, n.onset_s, n.offset_s, n.velocity) for n in read_musicxml(path).notes]
+    # music21's shifts: staccato 0.7 of the length and +0.05 volume, staccatissimo 0.5,
+    # accent +0.1 (times 127 on the velocity of 80), tenuto -0.05 and the written length.
+    assert notes == [(60, 0.0, 0.7, 86), (62, 1.0, 1.5, 86), (64, 2.0, 3.0, 93), (65, 3.0, 4.0, 74)]
+    written = [(n.offset_s, n.velocity) for n in read_musicxml(path, articulations=False).notes]
+    assert written == [(1.0, 80), (2.0, 80), (3.0, 80), (4.0, 80)]
+    # A staccato at the end of a tie shortens the tie's last note.
+    tied = _note("G", 4, 2, tie="start") + marked(_note("G", 4, 2, tie="stop"), "<staccato/>")
+    tied = tied.replace('<tied type="stop"/></notations><notations>', '<tied type="stop"/>')
+    song = read_musicxml(_write(tmp_path / "tied.musicxml", _score(tied)))
+    assert [(n.pitch, n.onset_s, n.offset_s) for n in song.notes] == [(67, 0.0, 3.4)]
 
 
 def test_ties_join_voice_by_voice_and_pitch_by_pitch(tmp_path: Path) -> None:

@@ -4,7 +4,15 @@ from __future__ import annotations
 
 import pytest
 
-from pianist.music.ornaments import grace_length, mordent, roll_starts, tremolo, trill, turn
+from pianist.music.ornaments import (
+    alternation,
+    grace_length,
+    mordent,
+    roll_starts,
+    tremolo,
+    trill,
+    turn,
+)
 
 C4, D4, B3 = 60, 62, 59
 
@@ -59,3 +67,17 @@ def test_a_rolled_chord_starts_its_notes_a_step_apart_within_half_its_length() -
     assert roll_starts(3, 1.0, 0.05) == [0.0, 0.05, 0.1]
     assert roll_starts(5, 0.2, 0.05) == pytest.approx([0.0, 0.025, 0.05, 0.075, 0.1])
     assert roll_starts(1, 1.0, 0.05) == [0.0]
+
+
+def test_a_tremolo_between_two_notes_alternates_them_from_the_first() -> None:
+    notes = alternation([C4], [D4, B3], 1.0, 2, 0.1)  # sixteenths over a quarter
+    assert [(p, a) for p, a, _ in notes] == [
+        (C4, 0.0),
+        (D4, 0.25),
+        (B3, 0.25),
+        (C4, 0.5),
+        (D4, 0.75),
+        (B3, 0.75),
+    ]
+    assert len(alternation([C4], [D4], 1.0, 4, 0.2)) == 4  # at the pace, an even count
+    assert [p for p, _, _ in alternation([C4], [D4], 0.3, 1, 0.1)] == [C4, D4]  # at least two

@@ -9,7 +9,7 @@ score is read. Reading conventions (a caller should know these):
   are joined, voice by voice and pitch by pitch (in a chord only its tied pitches go on; a
   tie does not bridge a rest).
 - Ornaments are played as a performer plays them (:mod:`pianist.music.ornaments`): grace
-  notes on the beat, trills, mordents, turns and single-note tremolos (on chords too), none
+  notes on the beat, trills, mordents, turns and tremolos (on chords too), none
   of their notes shorter than two of the goal's frames where the written note leaves room;
   rolled chords one frame per note. A chord's trill, mordent or turn keeps its written
   notes; ``ornaments=False`` reads every note as written (grace notes left out).
@@ -24,6 +24,8 @@ score is read. Reading conventions (a caller should know these):
   default; a mark without a number keeps the tempo before it), and from words that name a
   tempo where no mark does at their time ("Allegro": music21's value for it, quarter = 132).
   A fermata holds its note or rest twice as long (at most 2 s longer), every part waiting.
+  Articulation marks shape their notes (music21's shifts: staccato 0.7 of the written
+  length, accent +13 velocity).
   Velocities from the note's own (where the file gives one), else from the part's dynamics
   marks (p, mf, ff: music21's loudness of each, times 127; sf, fz accent their note; the two
   staves of a grand staff share their marks), else 80.
@@ -66,6 +68,7 @@ from pianist.music.ornaments import (
     ROLL_STEP_S,
     SHORTEST_NOTE_S,
     Played,
+    alternation,
     grace_length,
     mordent,
     roll_starts,
@@ -159,6 +162,7 @@ def read_score(
     expand_repeats: bool = True,
     ornaments: bool = True,
     fermatas: bool = True,
+    articulations: bool = True,
 ) -> Song:
     """Read a score into a :class:`Song` (see the module docstring's conventions): MusicXML,
     or Humdrum ``**kern``, ABC or MEI, which music21 parses into the same shape.
@@ -175,6 +179,9 @@ def read_score(
             out and ornamented notes and chords played as written.
         fermatas: hold the notes and rests under a fermata :data:`FERMATA_HOLD` times as
             long (every part waits); False: as written.
+        articulations: shorten staccato notes and accent accented ones (music21's length
+            and volume shift of each mark: staccato 0.7 of the written length, staccatissimo
+            0.5; accent +13 velocity); False: as written.
 
     Raises:
         MusicError: music21 missing; a missing or unreadable file, or one not of its suffix's
@@ -185,7 +192,9 @@ def read_score(
     if out_of_range not in ("error", "drop"):
         raise ValueError(f"out_of_range must be 'error' or 'drop', got {out_of_range!r}")
     path, tune, score = _open(path)
-    return _song_of(score, path, tune, out_of_range, expand_repeats, ornaments, fermatas)
+    return _song_of(
+        score, path, tune, out_of_range, expand_repeats, ornaments, fermatas, articulations
+    )
 
 
 class ScoreSummary(NamedTuple):
@@ -207,13 +216,16 @@ def score_summary(path: str | os.PathLike[str]) -> ScoreSummary:
         MusicError: as :func:`read_score`.
     """
     path, tune, score = _open(path)
-    written = _song_of(score, path, tune, "drop", False, ornaments=False, fermatas=True)
+    written = _song_of(score, path, tune, "drop", False, False, fermatas=True, articulations=True)
     counts: Counter[str] = Counter()
     for element in score.recurse().notes:
         if element.duration.isGrace:
             counts["grace notes"] += 1
         if _roll(element) is not None:
             counts["rolled chords"] += 1
+        pair = _tremolo_pair(element)
+        if pair is not None and pair.getFirst() is element:
+            counts["tremolos"] += 1
         for mark in element.expressions:
             kind = next((k for k in _ORNAMENT_KINDS if k in mark.classes), None)
             if kind is not None and (kind == "Tremolo" or len(element.pitches) == 1):
@@ -250,6 +262,7 @@ def _song_of(
     expand_repeats: bool,
     ornaments: bool,
     fermatas: bool,
+    articulations: bool,
 ) -> Song:
     """The song a parsed score plays (:func:`read_score`'s options; ``path`` and ``tune``
     name it and its errors)."""
@@ -264,7 +277,11 @@ def _song_of(
         for measures, hand, loudness in zip(
             played, _hands_of_parts(parts), _loudness(played, parts, events), strict=True
         ):
-            raw.extend(_part_notes(measures, hand, seconds, playings, events, loudness, ornaments))
+            raw.extend(
+                _part_notes(
+                    measures, hand, seconds, playings, events, loudness, ornaments, articulations
+                )
+            )
         sustain = _pedal_intervals(_sustain_marks(score), playings, seconds)
     outside = [r for r in raw if not LOWEST_PITCH <= r[0] <= HIGHEST_PITCH]
     if outside and out_of_range == "error":
@@ -672,6 +689,7 @@ def _part_notes(
     events: dict[int, list[_Event]],
     loudness: Callable[[float], int | None],
     ornaments: bool,
+    articulations: bool,
 ) -> list[RawNote]:
     """The notes of one part (a staff) as played, ties joined; each note's and pedal
     change's playings are added to ``playings`` (see :func:`_pedal_intervals`). ``events``
@@ -679,7 +697,8 @@ def _part_notes(
     part's dynamics give at a time as played (:func:`_loudness`). With ``ornaments`` the
     grace notes, rolled chords, trills, mordents, turns and tremolos are played
     (:mod:`pianist.music.ornaments`); without, grace notes are left out and the rest played
-    as their written note.
+    as their written note. With ``articulations`` staccato notes are shortened and accented
+    ones louder (:func:`_articulation`).
 
     Ties are joined here, voice by voice and pitch by pitch, in one pass over the part's notes
     in time order: music21's ``stripTies`` copies the part and searches its spanners for every
@@ -688,6 +707,7 @@ def _part_notes(
     entries: list[list[Any]] = []  # [pitch, onset ql, offset ql, velocity, finger]
     tied: dict[tuple[str | None, int], list[Any]] = {}  # (voice, pitch) -> the tied entry
     graces: dict[str | None, list[tuple[float, Any]]] = {}  # voice -> graces before its note
+    tremolos: dict[int, tuple[float, Any]] = {}  # a two-note tremolo -> its first note, onset
     for measure, start in played:
         for offset, element, voice, kind, source in events[id(measure)]:
             if kind in ("tempo", "tempo words", "dynamic"):
@@ -701,10 +721,18 @@ def _part_notes(
                 if ornaments:
                     graces.setdefault(voice, []).append((onset, element))
                 continue
-            velocity = int(element.volume.velocity or loudness(onset) or DEFAULT_VELOCITY)
+            tremolo_pair = _tremolo_pair(element) if ornaments else None
+            if tremolo_pair is not None and tremolo_pair.getFirst() is element:
+                tremolos[id(tremolo_pair)] = (onset, element)  # played with the second note
+                continue
+            fraction, accent = _articulation(element) if articulations else (1.0, 0)
+            velocity = int(
+                element.volume.velocity or (loudness(onset) or DEFAULT_VELOCITY) + accent
+            )
             quarters_per_s = 1.0 / _seconds_per_quarter(seconds, onset)
             unit = ORNAMENT_NOTE_S * quarters_per_s if ornaments else 0.0  # ornaments' pace
             shortest = SHORTEST_NOTE_S * quarters_per_s
+
             # Grace notes at this note's onset take their time from its start; others (a grace
             # note before a rest, or left at a part's end, or too quick to show) are left out.
             before = [g for at, g in graces.pop(voice, []) if abs(at - onset) <= 1e-9]
@@ -716,6 +744,17 @@ def _part_notes(
                         at = onset + k * each
                         entries.append([p.midi, at, at + each, velocity, None])
                 lead = len(before) * each
+            first = tremolos.pop(id(tremolo_pair), None)
+            if tremolo_pair is not None and first is not None:
+                # The second note of a two-note tremolo: the two alternate over both notes.
+                begin, first_element = first
+                strokes = int(tremolo_pair.numberOfMarks)
+                first_pitches = [p.midi for p in first_element.pitches]
+                second_pitches = [p.midi for p in element.pitches]
+                span = onset + length - begin
+                for p, a, b in alternation(first_pitches, second_pitches, span, strokes, unit):
+                    entries.append([p, begin + a, begin + b, velocity, None])
+                continue
             pitches = [p.midi for p in element.pitches]
             delays = dict.fromkeys(pitches, 0.0)  # when each pitch starts after the onset
             if ornaments:
@@ -725,13 +764,16 @@ def _part_notes(
             if len(fingers) != len(pitches):
                 fingers = [None] * len(pitches)
             for pitch, tie, number in zip(pitches, ties, fingers, strict=True):
+                # A note a tie carries on sounds its whole written length; the articulation
+                # (staccato) shortens the last note of the tie.
+                tied_on = tie in ("start", "continue")
                 key = _tied_key(tied, voice, pitch, onset)
                 if key is not None:
                     # A tie carries the earlier note on; as in music21, the note a tie starts
                     # towards is joined even where the file forgets to mark the tie's end.
                     held = tied.pop(key)
-                    held[2] = onset + length
-                    if tie in ("start", "continue"):
+                    held[2] = onset + (length if tied_on else _sounding(length, fraction, shortest))
+                    if tied_on:
                         tied[key] = held
                     continue
                 finger = None
@@ -741,7 +783,10 @@ def _part_notes(
                 rest = length - lead - delays[pitch]
                 sounds = _ornament_notes(element, pitch, rest, unit) if ornaments else None
                 if not sounds or min(b - a for _, a, b in sounds) < shortest - 1e-9:
-                    sounds = [(pitch, 0.0, rest)]  # no ornament, or one too quick to show
+                    # No ornament, or one too quick to show.
+                    sounds = [
+                        (pitch, 0.0, rest if tied_on else _sounding(rest, fraction, shortest))
+                    ]
                 # The written note's finger plays each of its own strokes; the ornament's
                 # other notes are fingered like unfingered notes.
                 played_notes = [
@@ -749,12 +794,39 @@ def _part_notes(
                     for p, a, b in sounds
                 ]
                 entries.extend(played_notes)
-                if tie in ("start", "continue"):
+                if tied_on:
                     tied[(voice, pitch)] = played_notes[-1]  # the ornament ends on the note
     return [
         (pitch, seconds(onset), seconds(offset), velocity, hand, finger)
         for pitch, onset, offset, velocity, finger in entries
     ]
+
+
+def _tremolo_pair(element: Any) -> Any | None:
+    """The two-note tremolo (music21 ``TremoloSpanner``) a note or chord is one of the two
+    notes of; None for any other."""
+    for spanner in element.getSpannerSites():
+        if "TremoloSpanner" in spanner.classes and len(spanner.getSpannedElements()) == 2:
+            return spanner
+    return None
+
+
+def _articulation(element: Any) -> tuple[float, int]:
+    """The fraction of its written length a note or chord sounds, and the velocity its marks
+    add: music21's length and volume shift of each articulation mark (staccato 0.7 of the
+    length and +6 velocity, staccatissimo 0.5, accent +13, strong accent +19; tenuto's 1.1
+    is kept at the written length, so a note does not overlap the next)."""
+    fraction, volume = 1.0, 0.0
+    for mark in element.articulations:
+        fraction *= min(1.0, float(getattr(mark, "lengthShift", 1.0)))
+        volume += float(getattr(mark, "volumeShift", 0.0))
+    return fraction, round(volume * 127)
+
+
+def _sounding(length: float, fraction: float, shortest: float) -> float:
+    """How long a note of ``length`` (quarter lengths) sounds when its articulation keeps
+    ``fraction`` of it: never shorter than ``shortest`` (one goal frame) unless written so."""
+    return max(length * fraction, min(length, shortest))
 
 
 def _seconds_per_quarter(seconds: Callable[[float], float], ql: float) -> float:
@@ -765,7 +837,7 @@ def _seconds_per_quarter(seconds: Callable[[float], float], ql: float) -> float:
 def _ornament_notes(element: Any, pitch: int, length: float, unit: float) -> list[Played] | None:
     """The notes that ``pitch`` of a note or chord plays for the element's first ornament
     (:mod:`pianist.music.ornaments`) over ``length`` quarter lengths at the pace ``unit``: a
-    tremolo's repetitions (each pitch of a chord repeated), or a single note's trill,
+    single-note tremolo's repetitions (each pitch of a chord repeated), or a single note's trill,
     mordent or turn; None where there is none, on a chord's other ornaments, or on a mark
     music21 cannot resolve (the written note is played)."""
     for mark in element.expressions:

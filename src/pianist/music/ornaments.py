@@ -24,7 +24,8 @@ Conventions (the common modern ones; a reader wanting others writes the notes ou
   on the beat, the last written note holding the rest; a delayed turn holds the written note
   first and plays (above, written, below, written) at the note's end;
 - tremolo on one note: the note repeated at its strokes' value (one stroke: eighths; two:
-  sixteenths; three: thirty-seconds), or at the pace where that is faster;
+  sixteenths; three: thirty-seconds), or at the pace where that is faster; between two notes
+  (or chords): the two alternating so over both notes' time, from the first;
 - grace notes: on the beat, before their note, which they shorten; each at the pace, and
   together at most half of their note;
 - a rolled (arpeggiated) chord: its notes struck one after another from the lowest (from
@@ -35,6 +36,7 @@ Conventions (the common modern ones; a reader wanting others writes the notes ou
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 #: Shortest ornament or grace note, in seconds, where the written note leaves room: two of the
 #: goal's 20 Hz frames (see the module docstring).
@@ -102,6 +104,23 @@ def tremolo(principal: int, length: float, strokes: int, unit: float) -> list[Pl
     count = max(1, math.floor(length / value + _EPS))
     step = length / count
     return [(principal, k * step, (k + 1) * step) for k in range(count)]
+
+
+def alternation(
+    first: Sequence[int], second: Sequence[int], length: float, strokes: int, unit: float
+) -> list[Played]:
+    """A tremolo between two notes or chords (their pitches ``first`` and ``second``) over
+    both notes' ``length``: the two alternating, from the first, at the value the
+    ``strokes`` give (as :func:`tremolo`) or at ``unit`` where that is slower; an even
+    number of strokes, at least two, filling the length evenly."""
+    value = max(0.5 ** max(1, strokes), unit)
+    count = max(2, 2 * math.floor(length / (2 * value) + _EPS))
+    step = length / count
+    return [
+        (pitch, k * step, (k + 1) * step)
+        for k in range(count)
+        for pitch in (first if k % 2 == 0 else second)
+    ]
 
 
 def grace_length(count: int, length: float, unit: float) -> float:
