@@ -892,6 +892,11 @@ def test_play_a_musicxml_score(tmp_path: Path) -> None:
     assert main(["play", str(path), "--no-audio", "--out", str(out)]) == 0
     metrics = json.loads((out / "metrics.json").read_text())
     assert metrics["f1"] > 0.7 and metrics["steps"] == 81
+    assert metrics["notes"] == 7 and metrics["as_written"] is False  # the grace note played
+    written = tmp_path / "written"
+    assert main(["play", str(path), "--no-audio", "--as-written", "--out", str(written)]) == 0
+    metrics = json.loads((written / "metrics.json").read_text())
+    assert metrics["notes"] == 6 and metrics["as_written"] is True
 
 
 # A Humdrum **kern score: the left hand's spine first (C3 D3 E3 F3), then the right's (C4 ...),

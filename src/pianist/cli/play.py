@@ -54,6 +54,9 @@ class Play:
     out_of_range: Literal["error", "drop"] = "error"
     """A file's notes outside the piano's 88 keys: refuse the file (error) or leave them out
     (drop)."""
+    as_written: bool = False
+    """Read a score (MusicXML, Humdrum, ABC, MEI) as written: once through, with no ornaments,
+    fermatas or articulations played (other song files are read as always)."""
     out: Path = Path("out")
     """Output directory: created with the results once they are complete, or replaced whole
     if it holds an earlier run's results (a folder holding other files is refused)."""
@@ -125,7 +128,12 @@ class Play:
                 raise CliError(f"--refine refines the planner, not --controller {spec}")
             else:
                 spec = "refine" if spec == "planner" else spec
-        song = load_song(self.song, out_of_range=self.out_of_range, fingering=self.fingering)
+        song = load_song(
+            self.song,
+            out_of_range=self.out_of_range,
+            fingering=self.fingering,
+            as_written=self.as_written,
+        )
         planner = spec == "planner" or spec.split(":")[0] in ("refine", "search")
         if planner and song.fingering_coverage < 1.0:
             missing = sum(n.finger is None for n in song.notes)
@@ -167,7 +175,7 @@ class Play:
             self.out,
             media,
             title=title,
-            extra_metrics={"song": self.song, "controller": spec},
+            extra_metrics={"song": self.song, "controller": spec, "as_written": self.as_written},
         )
         song_f1 = f"  song F1 {metrics['song_f1']:.3f}" if "song_f1" in metrics else ""
         ceiling, planned = metrics.get("reach_ceiling_f1"), metrics.get("plan_f1")

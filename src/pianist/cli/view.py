@@ -30,6 +30,8 @@ class View:
     """How the song is fingered (as for `pianist play`)."""
     out_of_range: Literal["error", "drop"] = "error"
     """A file's notes outside the piano's 88 keys: refuse the file, or leave them out."""
+    as_written: bool = False
+    """Read a score as written (as for `pianist play`)."""
     physics: Annotated[
         Literal["faithful", "fast"] | None,
         tyro.conf.arg(
@@ -56,7 +58,12 @@ class View:
         from pianist.music import load_song
         from pianist.music.transforms import window
 
-        song = load_song(self.song, out_of_range=self.out_of_range, fingering=self.fingering)
+        song = load_song(
+            self.song,
+            out_of_range=self.out_of_range,
+            fingering=self.fingering,
+            as_written=self.as_written,
+        )
         if self.seconds is not None and self.seconds < song.duration_s:
             song = window(song, 0.0, self.seconds)
         controller = _make_controller(self.controller)

@@ -25,7 +25,7 @@ from typing import Literal
 from pianist.music.errors import MidiFileError, MusicError, UnknownSongError
 from pianist.music.fingering import FingeringMode, assign_fingering, ensure_fingering
 from pianist.music.midi import read_midi
-from pianist.music.musicxml import SCORE_SUFFIXES, read_score, tune_reference
+from pianist.music.musicxml import AS_WRITTEN, SCORE_SUFFIXES, read_score, tune_reference
 from pianist.music.notes import LEFT, RIGHT, Note, Song
 from pianist.music.open_library import (
     OPEN_SUITE,
@@ -306,6 +306,8 @@ def load_song(
     name_or_path: str | os.PathLike[str] | Song,
     out_of_range: Literal["error", "drop"] = "error",
     fingering: FingeringMode | None = None,
+    *,
+    as_written: bool = False,
 ) -> Song:
     """Resolve a song given as a :class:`Song`, a built-in name or a file path.
 
@@ -318,9 +320,10 @@ def load_song(
     ``.mid``/``.midi`` files go to :func:`read_midi` (no fingering), ``.txt`` files to
     :func:`read_pig`, ``.musicxml``/``.mxl``/``.xml``, ``.krn``, ``.abc`` and ``.mei`` scores to
     :func:`pianist.music.musicxml.read_score` (hands from the staves, the score's finger
-    numbers; needs music21; ``BOOK.abc#X`` names one tune of an ABC book); ``out_of_range``
-    is passed to each. A built-in name wins over a file of
-    the same name in the working directory.
+    numbers; needs music21; ``BOOK.abc#X`` names one tune of an ABC book; ``as_written``
+    reads a score once through with no ornaments, fermatas or articulations played:
+    :data:`pianist.music.musicxml.AS_WRITTEN`); ``out_of_range`` is passed to each. A
+    built-in name wins over a file of the same name in the working directory.
 
     ``fingering`` (None leaves the song as loaded) applies
     :func:`pianist.music.fingering.ensure_fingering`: "auto" estimates the missing fingers
@@ -336,7 +339,7 @@ def load_song(
             any reader error; or ``fingering="file"`` and some notes have no finger.
         PigDatasetError: a PIG piece name before ``pianist import-pig`` has run.
     """
-    song = _load_song(name_or_path, out_of_range)
+    song = _load_song(name_or_path, out_of_range, AS_WRITTEN if as_written else {})
     if fingering is None or fingering == "none":
         return song
     if (fingering == "auto" and not song.has_full_fingering) or fingering == "robot":
@@ -352,7 +355,9 @@ def load_song(
 def _load_song(
     name_or_path: str | os.PathLike[str] | Song,
     out_of_range: Literal["error", "drop"],
+    reading: dict[str, bool],
 ) -> Song:
+    """:func:`load_song` without the fingering (``reading``: :func:`read_score`'s options)."""
     if isinstance(name_or_path, Song):
         return name_or_path
     text = os.fspath(name_or_path)
@@ -365,7 +370,7 @@ def _load_song(
             return load_pig_song(text)
     path = Path(text)
     if not path.exists() and tune_reference(text) is not None:  # BOOK.abc#X
-        return read_score(text, out_of_range=out_of_range)
+        return read_score(text, out_of_range=out_of_range, **reading)
     looks_like_path = bool(path.suffix) or "/" in text or os.sep in text
     if not path.exists():
         if looks_like_path or not isinstance(name_or_path, str):
@@ -377,7 +382,7 @@ def _load_song(
     if suffix == ".txt":
         return read_pig(path, out_of_range=out_of_range)
     if suffix in SCORE_SUFFIXES:
-        return read_score(path, out_of_range=out_of_range)
+        return read_score(path, out_of_range=out_of_range, **reading)
     if path.is_dir():
         raise MusicError(f"{path}: is a directory, not a song file")
     raise MusicError(

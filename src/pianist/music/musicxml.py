@@ -91,6 +91,14 @@ _FORMATS = {
     ".abc": ("abc", "ABC"),
     ".mei": ("mei", "MEI"),
 }
+#: :func:`read_score`'s options that read a score as written: once through, every note as
+#: its notation gives it (no ornaments, fermatas or articulations played).
+AS_WRITTEN: dict[str, bool] = {
+    "expand_repeats": False,
+    "ornaments": False,
+    "fermatas": False,
+    "articulations": False,
+}
 #: Quarter notes per minute before a score's first metronome mark (music21's default).
 DEFAULT_QUARTER_BPM = 120.0
 #: Velocity of a note whose score gives none.
