@@ -11,7 +11,7 @@ import pytest
 
 from pianist.cli import main
 from pianist.music import MusicError, OutOfRangeError, load_song, musicxml
-from pianist.music.musicxml import merge_voices, read_musicxml
+from pianist.music.musicxml import merge_voices, read_musicxml, read_score
 
 
 def _note(
@@ -158,6 +158,37 @@ def test_dynamics_give_the_velocities(tmp_path: Path) -> None:
     song = read_musicxml(_write(tmp_path / "dynamics.musicxml", _score(measure)))
     velocity = {n.pitch: n.velocity for n in song.notes}
     assert velocity == {72: 44, 74: 108, 76: 44, 77: 89, 48: 44}  # p 0.35, f 0.7, sf 0.85 of 127
+
+
+def test_hairpins_go_from_one_level_to_the_next(tmp_path: Path) -> None:
+    def direction(inner: str) -> str:
+        return f"<direction><direction-type>{inner}</direction-type></direction>"
+
+    # p, a crescendo over C4 D4 E4 to f on F4; then a diminuendo over G4 A4 that no mark ends:
+    # one step softer (13), which B4 keeps.
+    measure = (
+        direction("<dynamics><p/></dynamics>")
+        + direction('<wedge type="crescendo"/>')
+        + _note("C", 4, 1)
+        + _note("D", 4, 1)
+        + _note("E", 4, 1)
+        + direction('<wedge type="stop"/>')
+        + direction("<dynamics><f/></dynamics>")
+        + _note("F", 4, 1)
+    )
+    second = (
+        direction('<wedge type="diminuendo"/>')
+        + _note("G", 4, 2)
+        + _note("A", 4, 1)
+        + direction('<wedge type="stop"/>')
+        + _note("B", 4, 1)
+    )
+    text = _score(measure, staves=1).replace(
+        "</measure></part>", f'</measure><measure number="2">{second}</measure></part>'
+    )
+    song = read_musicxml(_write(tmp_path / "hairpins.musicxml", text))
+    assert [n.velocity for n in song.notes] == [44, 59, 74, 89, 89, 80, 76]
+    # p 44 to f 89 over three beats; f 89 to 76 over three beats (G4 at 0, A4 at 2 of 3).
 
 
 def _ornamented(step: str, octave: int, duration: int, ornament: str) -> str:
@@ -950,6 +981,19 @@ MEI = """<?xml version="1.0" encoding="UTF-8"?>
 </measure>
 </section></score></mdiv></body></music></mei>
 """
+
+
+def test_an_abc_fermata_shorthand_keeps_its_note(tmp_path: Path) -> None:
+    # "HE": E under a fermata. music21 alone drops the E and plays F on the third beat; the
+    # H of the history field, of the quoted text and of the comment are not fermatas.
+    tune = 'X:1\nT:Held\nH:Heard in Hexham\nM:4/4\nL:1/4\nQ:1/4=60\nK:C\n"Hi"C D HE F|] % Hm\n'
+    song = read_score(_write(tmp_path / "held.abc", tune))
+    assert [(n.pitch, n.onset_s) for n in song.notes] == [
+        (60, 0.0),
+        (62, 1.0),
+        (64, 2.0),
+        (65, 3.0),
+    ]
 
 
 def test_humdrum_abc_and_mei_scores(tmp_path: Path, capsys) -> None:

@@ -27,8 +27,9 @@ score is read. Reading conventions (a caller should know these):
   Articulation marks shape their notes (music21's shifts: staccato 0.7 of the written
   length, accent +13 velocity).
   Velocities from the note's own (where the file gives one), else from the part's dynamics
-  marks (p, mf, ff: music21's loudness of each, times 127; sf, fz accent their note; the two
-  staves of a grand staff share their marks), else 80.
+  marks (p, mf, ff: music21's loudness of each, times 127; sf, fz accent their note; a
+  hairpin goes from one level to the next; the two staves of a grand staff share their
+  marks), else 80.
 - Sustain-pedal marks are the song's pedal intervals, each from the onset of the first note
   under the mark to the end of the last; a pedal change inside a mark (``<pedal
   type="change">``) lifts the pedal for :data:`PEDAL_CHANGE_S` there.
@@ -335,6 +336,8 @@ def _parse(path: Path, tune: int | None, music21_format: str, kind: str) -> tupl
         source: str = str(path)
         if path.suffix.lower() in (".musicxml", ".xml"):
             source = _partwise(path.read_bytes()) or source  # music21 reads partwise only
+        if music21_format == "abc":
+            source = _abc_without_shorthand_fermatas(path) or source
         score = converter.parse(source, format=music21_format, forceSource=True, **options)
     except Exception as exc:  # music21 raises many types for a file it cannot read
         raise MusicError(f"{path}: not a readable {kind} score ({one_line(exc)})") from None
@@ -391,6 +394,40 @@ def _reference_numbers(path: Path) -> list[int]:
     """The reference numbers (``X:`` fields) of the tunes in an ABC file, in order."""
     text = path.read_text(encoding="utf-8", errors="replace")
     return [int(m[1]) for m in re.finditer(r"^X:\s*(\d+)", text, flags=re.MULTILINE)]
+
+
+def _abc_without_shorthand_fermatas(path: Path) -> str | None:
+    """An ABC file's text with each fermata written as the shorthand ``H`` (``HE``: E under a
+    fermata) written out (``!fermata!E``), which music21 reads; None where it has none.
+    music21 drops the note after the shorthand, shifting every later note of its voice
+    earlier (Aird's Airs and O'Neill's 1850 in its own corpus hold 226 such lines).
+
+    Only the music is changed: field lines (``X:``, ``H:``...), comments, quoted text,
+    decorations (``!...!``, ``+...+``) and inline fields (``[K:...]``) are kept as they are."""
+    text = path.read_text(encoding="utf-8", errors="replace")
+    lines = text.splitlines(keepends=True)
+    changed = False
+    for i, line in enumerate(lines):
+        if re.match(r"[A-Za-z+]:", line) or "H" not in line:
+            continue
+        out, closing = [], ""  # closing: the character that ends the span we are in
+        for k, char in enumerate(line):
+            if closing:
+                closing = "" if char == closing else closing
+            elif char == "%":
+                out.append(line[k:])
+                break
+            elif char in '"!+':
+                closing = char
+            elif char == "[" and re.match(r"\[[A-Za-z]:", line[k:]):
+                closing = "]"
+            elif char == "H":
+                out.append("!fermata!")
+                changed = True
+                continue
+            out.append(char)
+        lines[i] = "".join(out)
+    return "".join(lines) if changed else None
 
 
 def tune_reference(text: str) -> tuple[Path, int] | None:
@@ -1076,16 +1113,31 @@ def _loudness(
 ) -> list[Callable[[float], int | None]]:
     """Per part, the velocity (1-127) its dynamics give a note at a time as played (quarter
     lengths): an accent (sf, fz, ...) on the note's own time, else the last level (pp, mf,
-    ...) at or before it; None before the first. music21's loudness of each mark (p 0.35, f
-    0.7 of full) scales 127. The two staves of a grand staff share their marks: a mark
-    printed between them belongs to both."""
+    ...) at or before it, or on a crescendo or diminuendo hairpin the way from one level to
+    the next (:func:`_loudness_of`); None before the first. music21's loudness of each mark
+    (p 0.35, f 0.7 of full) scales 127. The two staves of a grand staff share their marks: a
+    mark printed between them belongs to both."""
     from music21 import dynamics
 
     marks: dict[str, list[tuple[float, int, bool]]] = {}  # staff group -> (time, velocity, accent)
+    ramps: dict[str, list[tuple[float, float, bool]]] = {}  # group -> (start, end, louder)
     for measures, part in zip(played, parts, strict=True):
         group = marks.setdefault(_staff_group(part), [])
+        hairpins = ramps.setdefault(_staff_group(part), [])
+        started: dict[int, float] = {}  # a hairpin -> when its first note is played
         for measure, start in measures:
             for event in events[id(measure)]:
+                if event.kind == "note":
+                    at = start + event.offset
+                    for wedge in event.element.getSpannerSites():
+                        if "DynamicWedge" not in wedge.classes:
+                            continue
+                        if wedge.getFirst() is event.element:
+                            started[id(wedge)] = at
+                        if wedge.getLast() is event.element and id(wedge) in started:
+                            end = at + float(event.element.duration.quarterLength)
+                            louder = "Crescendo" in wedge.classes
+                            hairpins.append((started.pop(id(wedge)), end, louder))
                 scalar = event.element.volumeScalar if event.kind == "dynamic" else None
                 if scalar is None or not scalar > 0:
                     continue
@@ -1094,7 +1146,7 @@ def _loudness(
                 after = _ACCENTS.get(value)
                 if after is not None:
                     group.append((at, _velocity(dynamics.Dynamic(after).volumeScalar), False))
-    return [_loudness_of(marks[_staff_group(part)]) for part in parts]
+    return [_loudness_of(marks[_staff_group(part)], ramps[_staff_group(part)]) for part in parts]
 
 
 def _velocity(scalar: float) -> int:
@@ -1108,15 +1160,47 @@ def _staff_group(part: Any) -> str:
     return str(part.id).split("-Staff")[0] if type(part).__name__ == "PartStaff" else str(id(part))
 
 
-def _loudness_of(marks: list[tuple[float, int, bool]]) -> Callable[[float], int | None]:
-    """The lookup :func:`_loudness` returns for one staff group's marks."""
+#: How much a crescendo or diminuendo hairpin changes the velocity when no level mark after it
+#: says (music21's levels are about 0.1 of full apart: mp 0.5, mf 0.55, f 0.7).
+HAIRPIN_STEP = 13
+
+
+def _loudness_of(
+    marks: list[tuple[float, int, bool]], ramps: list[tuple[float, float, bool]]
+) -> Callable[[float], int | None]:
+    """The lookup :func:`_loudness` returns for one staff group's marks (time, velocity,
+    accent) and hairpins (start, end in quarter lengths as played, crescendo or not). A
+    hairpin goes linearly, over its notes' time, from the level at its start (80 before any)
+    to the level marked within a quarter note of its end; where no mark there goes its way,
+    to :data:`HAIRPIN_STEP` louder or softer, which stays the level after it."""
     levels = sorted((at, velocity) for at, velocity, accent in marks if not accent)
     accents = {round(at, 6): velocity for at, velocity, accent in marks if accent}
+
+    def level(ql: float) -> int | None:
+        k = bisect.bisect_right([at for at, _ in levels], ql + 1e-9) - 1
+        return levels[k][1] if k >= 0 else None
+
+    ways: list[tuple[float, float, int, int]] = []  # (start, end, velocity at each)
+    for begin, end, louder in sorted(ramps):
+        first = level(begin) or DEFAULT_VELOCITY
+        marked = [v for at, v in levels if abs(at - end) <= 1.0 + 1e-9]
+        goes_its_way = [v for v in marked if (v > first if louder else v < first)]
+        if goes_its_way:
+            last = goes_its_way[0]
+        else:
+            last = max(1, min(127, first + (HAIRPIN_STEP if louder else -HAIRPIN_STEP)))
+            bisect.insort(levels, (end, last))  # the hairpin's level goes on after it
+        ways.append((begin, end, first, last))
     times = [at for at, _ in levels]
+    starts = [begin for begin, _, _, _ in ways]
 
     def loudness(ql: float) -> int | None:
         if round(ql, 6) in accents:
             return accents[round(ql, 6)]
+        k = bisect.bisect_right(starts, ql + 1e-9) - 1
+        if k >= 0 and ql < ways[k][1]:
+            begin, end, first, last = ways[k]
+            return round(first + (last - first) * (ql - begin) / (end - begin))
         k = bisect.bisect_right(times, ql + 1e-9) - 1
         return levels[k][1] if k >= 0 else None
 
