@@ -24,12 +24,12 @@ score is read. Reading conventions (a caller should know these):
   default; a mark without a number keeps the tempo before it), and from words that name a
   tempo where no mark does at their time ("Allegro": music21's value for it, quarter = 132).
   A fermata holds its note or rest twice as long (at most 2 s longer), every part waiting.
-  Articulation marks shape their notes (music21's shifts: staccato 0.7 of the written
+- Velocities come from the note's own (where the file gives one), else from the part's
+  dynamics marks (p, mf, ff: music21's loudness of each, times 127; sf, fz accent their
+  note; a hairpin goes from one level to the next; the two staves of a grand staff share
+  their marks), else 80.
+- Articulation marks shape their notes (music21's shifts: staccato 0.7 of the written
   length, accent +13 velocity).
-  Velocities from the note's own (where the file gives one), else from the part's dynamics
-  marks (p, mf, ff: music21's loudness of each, times 127; sf, fz accent their note; a
-  hairpin goes from one level to the next; the two staves of a grand staff share their
-  marks), else 80.
 - Sustain-pedal marks are the song's pedal intervals, each from the onset of the first note
   under the mark to the end of the last; a pedal change inside a mark (``<pedal
   type="change">``) lifts the pedal for :data:`PEDAL_CHANGE_S` there.
@@ -209,7 +209,7 @@ def read_score(
 class ScoreSummary(NamedTuple):
     """What a score's reading adds to what it writes (:func:`score_summary`)."""
 
-    #: The song's duration in seconds played once through as written (no repeats).
+    #: The song's duration in seconds played once through, without its repeats.
     once_through_s: float
     #: How many of each ornament of the kinds the reader plays the score writes, by name in
     #: the plural ("grace notes", "rolled chords", "trills", "mordents", "turns", "tremolos");
@@ -225,7 +225,16 @@ def score_summary(path: str | os.PathLike[str]) -> ScoreSummary:
         MusicError: as :func:`read_score`.
     """
     path, tune, score = _open(path)
-    written = _song_of(score, path, tune, "drop", False, False, fermatas=True, articulations=True)
+    written = _song_of(
+        score,
+        path,
+        tune,
+        "drop",
+        expand_repeats=False,
+        ornaments=False,
+        fermatas=True,
+        articulations=True,
+    )
     counts: Counter[str] = Counter()
     for element in score.recurse().notes:
         if element.duration.isGrace:
@@ -779,26 +788,20 @@ def _part_notes(
             shortest = SHORTEST_NOTE_S * quarters_per_s
 
             # Grace notes at this note's onset take their time from its start; others (a grace
-            # note before a rest, or left at a part's end, or too quick to show) are left out.
+            # note before a rest, or left at a part's end) are left out.
             before = [g for at, g in graces.pop(voice, []) if abs(at - onset) <= 1e-9]
-            lead = 0.0
-            if before and grace_length(len(before), length, unit) >= shortest - 1e-9:
-                each = grace_length(len(before), length, unit)
-                for k, grace in enumerate(before):
-                    for p in grace.pitches:
-                        at = onset + k * each
-                        entries.append([p.midi, at, at + each, velocity, None])
-                lead = len(before) * each
-            first = tremolos.pop(id(tremolo_pair), None)
-            if tremolo_pair is not None and first is not None:
+            grace_notes = _grace_notes(before, length, unit, shortest)
+            entries += [[p, onset + a, onset + b, velocity, None] for p, a, b in grace_notes]
+            lead = grace_notes[-1][2] if grace_notes else 0.0
+            if tremolo_pair is not None and id(tremolo_pair) in tremolos:
                 # The second note of a two-note tremolo: the two alternate over both notes.
-                begin, first_element = first
-                strokes = int(tremolo_pair.numberOfMarks)
-                first_pitches = [p.midi for p in first_element.pitches]
-                second_pitches = [p.midi for p in element.pitches]
-                span = onset + length - begin
-                for p, a, b in alternation(first_pitches, second_pitches, span, strokes, unit):
-                    entries.append([p, begin + a, begin + b, velocity, None])
+                begin, first = tremolos.pop(id(tremolo_pair))
+                strokes, span = int(tremolo_pair.numberOfMarks), onset + length - begin
+                first_pitches, second_pitches = (
+                    [p.midi for p in e.pitches] for e in (first, element)
+                )
+                alternating = alternation(first_pitches, second_pitches, span, strokes, unit)
+                entries += [[p, begin + a, begin + b, velocity, None] for p, a, b in alternating]
                 continue
             pitches = [p.midi for p in element.pitches]
             delays = dict.fromkeys(pitches, 0.0)  # when each pitch starts after the onset
@@ -845,6 +848,16 @@ def _part_notes(
         (pitch, seconds(onset), seconds(offset), velocity, hand, finger)
         for pitch, onset, offset, velocity, finger in entries
     ]
+
+
+def _grace_notes(graces: list[Any], length: float, unit: float, shortest: float) -> list[Played]:
+    """The notes of the grace notes (music21 notes or chords) before a note of ``length``
+    quarter lengths, from its onset, each :func:`pianist.music.ornaments.grace_length` long;
+    none where that is shorter than ``shortest`` (too quick to show)."""
+    if not graces or grace_length(len(graces), length, unit) < shortest - 1e-9:
+        return []
+    each = grace_length(len(graces), length, unit)
+    return [(p.midi, k * each, (k + 1) * each) for k, g in enumerate(graces) for p in g.pitches]
 
 
 def _tremolo_pair(element: Any) -> Any | None:

@@ -38,11 +38,11 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
-#: Shortest ornament or grace note, in seconds, where the written note leaves room: two of the
-#: goal's 20 Hz frames (see the module docstring).
+#: The pace of ornaments and grace notes, in seconds per note: none is made shorter where the
+#: written note leaves room (two of the goal's 20 Hz frames; see the module docstring).
 ORNAMENT_NOTE_S = 0.1
 
-#: Shortest ornament or grace note, in seconds: one of the goal's 20 Hz frames.
+#: The shortest ornament or grace note the reader plays, in seconds: one of the goal's frames.
 SHORTEST_NOTE_S = 0.05
 
 #: Time between the notes of a rolled chord, in seconds: one of the goal's frames (a pianist's
