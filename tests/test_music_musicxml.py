@@ -269,7 +269,7 @@ def test_ornaments_are_played_as_a_performer_plays_them(tmp_path: Path, capsys) 
     }
     assert main(["info", str(path)]) == 0
     assert (
-        "ornaments:  1 trills, 1 grace notes, 1 mordents, 1 turns, 1 tremolos (played; any quicker"
+        "ornaments:  1 trill, 1 grace note, 1 mordent, 1 turn, 1 tremolo (played; any quicker"
         in capsys.readouterr().out
     )
 
@@ -915,6 +915,15 @@ def test_info_says_what_the_repeats_add(tmp_path: Path, capsys) -> None:
     lost = _write(tmp_path / "lost.musicxml", _one_staff_score("C", "D|||D.S."))
     assert main(["info", str(lost)]) == 0
     assert "repeats:    not played (see the warning)" in capsys.readouterr().out
+
+
+def test_info_parses_a_score_once(tmp_path: Path, capsys, monkeypatch) -> None:
+    parses = []
+    parse = musicxml._parse
+    monkeypatch.setattr(musicxml, "_parse", lambda *a: parses.append(a) or parse(*a))
+    path = _write(tmp_path / "piece.musicxml", _score(GRAND_STAFF))  # fingered in part
+    assert main(["info", str(path)]) == 0
+    assert "notes:      7" in capsys.readouterr().out and len(parses) == 1
 
 
 def test_play_a_musicxml_score(tmp_path: Path) -> None:

@@ -117,14 +117,13 @@ class Info:
         # Warnings on load (a known-broken PIG piece) are part of the description.
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            song = load_song(self.song)
+            summary = _score_summary(self.song)  # a score is parsed once
+            song = summary.song if summary is not None else load_song(self.song)
             # What `play` plays by default: the missing hands and fingers estimated (from
-            # the file again only for MIDI, whose tracks hint at the hands; a score is not
-            # parsed twice).
+            # the file again only for MIDI, whose tracks hint at the hands).
             is_midi = Path(self.song).suffix.lower() in (".mid", ".midi")
             source = self.song if is_midi else song
             played = song if song.has_full_fingering else load_song(source, fingering="auto")
-            summary = _score_summary(self.song)
         problems = list(dict.fromkeys(" ".join(str(w.message).split()) for w in caught))
         problems += [p for p in check_playability(played) if not any(p in q for q in problems)]
         stats = song_stats(played)
@@ -163,7 +162,10 @@ class Info:
                 lines.append("repeats:    none")
             else:
                 lines.append(f"repeats:    played ({once:.2f} s once through as written)")
-            ornaments = ", ".join(f"{n} {kind}" for kind, n in summary.ornaments.items())
+            ornaments = ", ".join(
+                f"{n} {kind if n != 1 else kind.removesuffix('s')}"
+                for kind, n in summary.ornaments.items()
+            )
             played_as = " (played; any quicker than a frame as written)" if ornaments else ""
             lines.append(f"ornaments:  {ornaments or 'none'}{played_as}")
         lines += [
@@ -181,7 +183,7 @@ class Info:
 
 
 def _score_summary(song: str) -> ScoreSummary | None:
-    """A score's duration once through as written and its ornaments
+    """A score's song, its duration once through and its ornaments, from one parse
     (:func:`pianist.music.musicxml.score_summary`); None for anything else."""
     from pianist.music import SCORE_SUFFIXES
     from pianist.music.musicxml import score_summary, tune_reference

@@ -18,7 +18,7 @@ from __future__ import annotations
 import difflib
 import os
 import re
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Literal
 
@@ -355,7 +355,7 @@ def load_song(
 def _load_song(
     name_or_path: str | os.PathLike[str] | Song,
     out_of_range: Literal["error", "drop"],
-    reading: dict[str, bool],
+    reading: Mapping[str, bool],
 ) -> Song:
     """:func:`load_song` without the fingering (``reading``: :func:`read_score`'s options)."""
     if isinstance(name_or_path, Song):

@@ -55,9 +55,10 @@ import os
 import re
 import warnings
 from collections import Counter
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
+from types import MappingProxyType
 from typing import Any, Literal, NamedTuple
 
 from pianist.music.errors import MusicError, one_line
@@ -94,12 +95,9 @@ _FORMATS = {
 }
 #: :func:`read_score`'s options that read a score as written: once through, every note as
 #: its notation gives it (no ornaments, fermatas or articulations played).
-AS_WRITTEN: dict[str, bool] = {
-    "expand_repeats": False,
-    "ornaments": False,
-    "fermatas": False,
-    "articulations": False,
-}
+AS_WRITTEN: Mapping[str, bool] = MappingProxyType(
+    {"expand_repeats": False, "ornaments": False, "fermatas": False, "articulations": False}
+)
 #: Quarter notes per minute before a score's first metronome mark (music21's default).
 DEFAULT_QUARTER_BPM = 120.0
 #: Velocity of a note whose score gives none.
@@ -207,8 +205,10 @@ def read_score(
 
 
 class ScoreSummary(NamedTuple):
-    """What a score's reading adds to what it writes (:func:`score_summary`)."""
+    """A score's song and what its reading adds to what it writes (:func:`score_summary`)."""
 
+    #: The song as :func:`read_score` reads it by default.
+    song: Song
     #: The song's duration in seconds played once through, without its repeats.
     once_through_s: float
     #: How many of each ornament of the kinds the reader plays the score writes, by name in
@@ -217,14 +217,17 @@ class ScoreSummary(NamedTuple):
     ornaments: dict[str, int]
 
 
-def score_summary(path: str | os.PathLike[str]) -> ScoreSummary:
-    """A score's duration once through as written and its ornaments, from one parse (the
-    song itself is :func:`read_score`'s).
+def score_summary(
+    path: str | os.PathLike[str], *, out_of_range: Literal["error", "drop"] = "error"
+) -> ScoreSummary:
+    """A score's song (:func:`read_score`'s, with its defaults), its duration once through
+    and its ornaments, from one parse.
 
     Raises:
-        MusicError: as :func:`read_score`.
+        MusicError, OutOfRangeError: as :func:`read_score`.
     """
     path, tune, score = _open(path)
+    song = _song_of(score, path, tune, out_of_range, True, True, True, True)
     written = _song_of(
         score,
         path,
@@ -249,7 +252,7 @@ def score_summary(path: str | os.PathLike[str]) -> ScoreSummary:
             if kind is not None and (kind == "Tremolo" or len(element.pitches) == 1):
                 counts[_ORNAMENT_KINDS[kind]] += 1
                 break  # the first ornament is the one played
-    return ScoreSummary(written.duration_s, dict(counts))
+    return ScoreSummary(song, written.duration_s, dict(counts))
 
 
 #: The ornaments the reader plays: music21's class, and the name :class:`ScoreSummary` gives.
