@@ -300,7 +300,9 @@ def test_ornaments_too_quick_for_the_goals_frames_are_played_as_written(tmp_path
     ]
 
 
-def test_a_chord_tremolo_repeats_the_chord_and_a_trill_keeps_its_tie(tmp_path: Path) -> None:
+def test_a_chord_tremolo_repeats_the_chord_and_a_trill_goes_on_through_its_tie(
+    tmp_path: Path,
+) -> None:
     chord = _ornamented("D", 4, 8, '<tremolo type="single">1</tremolo>')
     chord += _ornamented("G", 4, 8, '<tremolo type="single">1</tremolo>').replace(
         "<note>", "<note><chord/>"
@@ -333,8 +335,12 @@ def test_a_chord_tremolo_repeats_the_chord_and_a_trill_keeps_its_tie(tmp_path: P
             (1.5, 2.0),
         ]
     trill = [note for note in notes if note[1] >= 2.0]
-    assert [p for p, _, _ in trill] == [69, 71] * 4 + [69]
-    assert trill[-1][1:] == (round(2 + 8 / 9, 6), 4.0)  # the last A4 held on through the tie
+    # Nine notes over the written quarter, then on through the tie: eight more of 0.125 s
+    # from B4, ending on A4 at the tie's end.
+    assert [p for p, _, _ in trill] == [69, 71] * 4 + [69] + [71, 69] * 4
+    assert trill[8][1:] == (round(2 + 8 / 9, 6), 3.0)
+    assert [on for _, on, _ in trill[9:]] == [3 + k / 8 for k in range(8)]
+    assert trill[-1] == (69, 3.875, 4.0)
 
 
 def test_a_metronome_mark_without_a_number_keeps_the_tempo(tmp_path: Path) -> None:

@@ -11,6 +11,7 @@ from pianist.music.ornaments import (
     roll_starts,
     tremolo,
     trill,
+    trill_carried_on,
     turn,
 )
 
@@ -81,3 +82,10 @@ def test_a_tremolo_between_two_notes_alternates_them_from_the_first() -> None:
     ]
     assert len(alternation([C4], [D4], 1.0, 4, 0.2)) == 4  # at the pace, an even count
     assert [p for p, _, _ in alternation([C4], [D4], 0.3, 1, 0.1)] == [C4, D4]  # at least two
+
+
+def test_a_trill_carried_on_by_a_tie_starts_above_and_ends_on_its_note() -> None:
+    notes = trill_carried_on(C4, D4, 1.0, 0.11)
+    assert [p for p, _, _ in notes] == [D4, C4] * 4  # 0.125 each: the most pairs of >= 0.11
+    _covers(notes, 1.0)
+    assert [p for p, _, _ in trill_carried_on(C4, D4, 0.1, 0.11)] == [D4, C4]  # at least two

@@ -76,6 +76,7 @@ from pianist.music.ornaments import (
     roll_starts,
     tremolo,
     trill,
+    trill_carried_on,
     turn,
 )
 from pianist.music.pitch import HIGHEST_PITCH, LOWEST_PITCH, out_of_range_error
@@ -765,6 +766,7 @@ def _part_notes(
     tied: dict[tuple[str | None, int], list[Any]] = {}  # (voice, pitch) -> the tied entry
     graces: dict[str | None, list[tuple[float, Any]]] = {}  # voice -> graces before its note
     tremolos: dict[int, tuple[float, Any]] = {}  # a two-note tremolo -> its first note, onset
+    trilled: dict[tuple[str | None, int], tuple[int, float]] = {}  # tied trill -> (aux., step)
     for measure, start in played:
         for offset, element, voice, kind, source in events[id(measure)]:
             if kind in ("tempo", "tempo words", "dynamic"):
@@ -823,7 +825,22 @@ def _part_notes(
                     # A tie carries the earlier note on; as in music21, the note a tie starts
                     # towards is joined even where the file forgets to mark the tie's end.
                     held = tied.pop(key)
-                    held[2] = onset + (length if tied_on else _sounding(length, fraction, shortest))
+                    trill_so_far = trilled.pop(key, None)
+                    if trill_so_far is not None and length / 2 >= shortest - 1e-9:
+                        # A trill goes on through the tie (the note's finger on its strokes).
+                        auxiliary, step = trill_so_far
+                        more = [
+                            [p, onset + a, onset + b, held[3], held[4] if p == pitch else None]
+                            for p, a, b in trill_carried_on(pitch, auxiliary, length, step)
+                        ]
+                        entries.extend(more)
+                        held = more[-1]
+                        if tied_on:
+                            trilled[key] = (auxiliary, step)
+                    else:
+                        held[2] = onset + (
+                            length if tied_on else _sounding(length, fraction, shortest)
+                        )
                     if tied_on:
                         tied[key] = held
                     continue
@@ -847,10 +864,21 @@ def _part_notes(
                 entries.extend(played_notes)
                 if tied_on:
                     tied[(voice, pitch)] = played_notes[-1]  # the ornament ends on the note
+                    other = next((p for p, _, _ in sounds if p != pitch), None)
+                    if other is not None and _is_trill(element):
+                        trilled[(voice, pitch)] = (other, sounds[0][2] - sounds[0][1])
     return [
         (pitch, seconds(onset), seconds(offset), velocity, hand, finger)
         for pitch, onset, offset, velocity, finger in entries
     ]
+
+
+def _is_trill(element: Any) -> bool:
+    """Whether a single note carries a trill sign as its first ornament."""
+    for mark in element.expressions:
+        if {"Trill", "GeneralMordent", "Turn", "Tremolo"} & set(mark.classes):
+            return "Trill" in mark.classes and len(element.pitches) == 1
+    return False
 
 
 def _grace_notes(graces: list[Any], length: float, unit: float, shortest: float) -> list[Played]:

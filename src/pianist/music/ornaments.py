@@ -17,7 +17,8 @@ as its written note, and leaves such grace notes out (the goal could not show th
 Conventions (the common modern ones; a reader wanting others writes the notes out):
 
 - trill: starts on the written note, alternates with the note above, and ends on the
-  written note (an odd number of notes), over the written note's whole length;
+  written note (an odd number of notes), over the written note's whole length, and on over
+  the notes a tie carries it to;
 - mordent (written note, note below, written note) and inverted mordent (with the note
   above): the first two notes at the pace, the written note holds the rest;
 - turn (above, written, below, written) and inverted turn (below, written, above, written):
@@ -65,6 +66,17 @@ def trill(principal: int, auxiliary: int, length: float, unit: float) -> list[Pl
     step = length / count
     pitches = [principal if k % 2 == 0 else auxiliary for k in range(count)]
     return [(p, k * step, (k + 1) * step) for k, p in enumerate(pitches)]
+
+
+def trill_carried_on(principal: int, auxiliary: int, length: float, step: float) -> list[Played]:
+    """A trill carried on by a tie over a further ``length`` quarter lengths (the trill so far
+    ended on ``principal``): from ``auxiliary``, alternating, ending on ``principal``; an even
+    number of notes, at least two, none shorter than ``step`` where the length allows."""
+    count = max(2, 2 * math.floor(length / (2 * step) + _EPS))
+    each = length / count
+    return [
+        (auxiliary if k % 2 == 0 else principal, k * each, (k + 1) * each) for k in range(count)
+    ]
 
 
 def mordent(principal: int, auxiliary: int, length: float, unit: float) -> list[Played]:
