@@ -534,12 +534,12 @@ def test_a_substitution_keeps_its_first_finger_and_other_marks_are_no_fingers() 
 
     marked = note.Note("C4")
     marked.articulations += [articulations.Fingering("4-3"), articulations.Accent()]
-    from pianist.music.musicxml import _finger_numbers
+    from pianist.music.musicxml.marks import finger_numbers
 
-    assert _finger_numbers(marked) == [4]
+    assert finger_numbers(marked) == [4]
     odd = note.Note("C4")
     odd.articulations.append(articulations.Fingering("p"))  # a guitarist's thumb
-    assert _finger_numbers(odd) == [None]
+    assert finger_numbers(odd) == [None]
 
 
 def test_three_staves_give_no_hands(tmp_path: Path) -> None:
@@ -887,8 +887,10 @@ def test_bad_scores_are_clear_errors(tmp_path: Path, monkeypatch) -> None:
     assert "--out-of-range drop" in message(path, OutOfRangeError)
     assert [n.pitch for n in load_song(path, out_of_range="drop").notes] == [60]
     # A failure inside music21's parsed score is named as the file's, not a traceback.
+    from pianist.music.musicxml import reader
+
     with monkeypatch.context() as patched:
-        patched.setattr(musicxml, "_finger_numbers", lambda element: element.no_such_field)
+        patched.setattr(reader, "finger_numbers", lambda element: element.no_such_field)
         assert "a score this reader cannot follow (AttributeError" in message(path)
     monkeypatch.setitem(sys.modules, "music21", None)  # as if it were not installed
     assert "pip install 'pianist[musicxml]'" in message(tmp_path / "rests.musicxml")
@@ -925,8 +927,10 @@ def test_info_says_what_the_repeats_add(tmp_path: Path, capsys) -> None:
 
 def test_info_parses_a_score_once(tmp_path: Path, capsys, monkeypatch) -> None:
     parses = []
-    parse = musicxml._parse
-    monkeypatch.setattr(musicxml, "_parse", lambda *a: parses.append(a) or parse(*a))
+    from pianist.music.musicxml import files
+
+    parse = files._parse
+    monkeypatch.setattr(files, "_parse", lambda *a: parses.append(a) or parse(*a))
     path = _write(tmp_path / "piece.musicxml", _score(GRAND_STAFF))  # fingered in part
     assert main(["info", str(path)]) == 0
     assert "notes:      7" in capsys.readouterr().out and len(parses) == 1
