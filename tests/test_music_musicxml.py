@@ -1015,6 +1015,60 @@ def test_an_abc_fermata_shorthand_keeps_its_note(tmp_path: Path) -> None:
     ]
 
 
+# A two-hand ABC tune as such tunes are written: voices declared in the header, then taking
+# turns a line each ([V:name] at the line's start), the right hand first.
+ABC_TURNS = """X:1
+T:Turns
+M:4/4
+L:1/4
+Q:1/4=60
+V:RH clef=treble name="Right"
+V:LH clef=bass name="Left"
+%%score {RH | LH}
+K:C
+[V:RH] c d e f |
+[V:LH] C,2 G,,2 |
+[V:RH] g2 c2 |]
+[V:LH] C,4 |]
+"""
+
+
+def test_abc_voices_taking_turns_play_together(tmp_path: Path) -> None:
+    # music21 alone reads no [V:...] field (all eight bars play one after another, with no
+    # hands) and starts a new part at every V: line (a voice's second line would sound with
+    # its first, and each header declaration is a part of no notes).
+    expected = [
+        (48, 0.0, "left"),
+        (72, 0.0, "right"),
+        (74, 1.0, "right"),
+        (43, 2.0, "left"),
+        (76, 2.0, "right"),
+        (77, 3.0, "right"),
+        (48, 4.0, "left"),
+        (79, 4.0, "right"),
+        (72, 6.0, "right"),
+    ]
+    song = read_score(_write(tmp_path / "turns.abc", ABC_TURNS))
+    assert [(n.pitch, n.onset_s, n.hand) for n in song.notes] == expected
+    # The same with V: lines of names music21 takes (digits), in turns, declared in the header.
+    lines = ABC_TURNS.replace("[V:RH]", "V:1\n").replace("[V:LH]", "V:2\n")
+    lines = lines.replace("V:RH", "V:1").replace("V:LH", "V:2")
+    song = read_score(_write(tmp_path / "lines.abc", lines))
+    assert [(n.pitch, n.onset_s, n.hand) for n in song.notes] == expected
+    # In a book, only the tune read is rewritten; a tune of one voice is left as it is.
+    book = _write(tmp_path / "book.abc", ABC.replace("X:2", ABC_TURNS.replace("X:1", "X:2")))
+    assert [(n.pitch, n.onset_s) for n in read_score(f"{book}#2").notes][:3] == [
+        (48, 0.0),
+        (72, 0.0),
+        (74, 1.0),
+    ]
+    from pianist.music.musicxml.abc import abc_for_music21, voices_in_blocks
+
+    one_voice = ABC.split("\n\n")[1]
+    assert voices_in_blocks(one_voice) == one_voice
+    assert abc_for_music21(_write(tmp_path / "plain.abc", ABC)) is None
+
+
 def test_humdrum_abc_and_mei_scores(tmp_path: Path, capsys) -> None:
     from pianist.music import load_song
     from pianist.music.fileio import song_files

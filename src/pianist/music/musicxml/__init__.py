@@ -43,6 +43,9 @@ score is read. Reading conventions (a caller should know these):
 - Fingering: the score's finger numbers (1-5, the first of a substitution such as "4-3") are
   kept on the notes whose hand is known; a chord's numbers go to its notes in order when there
   is one per note. Notes without one are fingered by ``--fingering auto``.
+- An ABC tune's voices play together, however the file takes turns between them (``V:``
+  lines, ``[V:...]`` fields: :mod:`pianist.music.musicxml.abc`); two voices give the hands,
+  the first the right.
 - A MusicXML score written measure by measure (``score-timewise``) is read as the usual
   part by part form.
 - Absurd scores are refused as MIDI files are: a timeline past one hour, no notes.
