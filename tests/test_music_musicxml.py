@@ -274,6 +274,27 @@ def test_ornaments_are_played_as_a_performer_plays_them(tmp_path: Path, capsys) 
     )
 
 
+def test_chord_symbols_are_not_played(tmp_path: Path) -> None:
+    # A lead sheet's chord symbols (MusicXML <harmony>, ABC "G") name chords for an
+    # accompanist. music21 gives them as chords of no length; read as grace notes, each
+    # would sound before its melody note and shorten it.
+    harmony = "<harmony><root><root-step>{}</root-step></root><kind>major</kind></harmony>"
+    measure = harmony.format("C") + _note("E", 5, 2) + harmony.format("G") + _note("D", 5, 2)
+    path = _write(tmp_path / "lead.musicxml", _score(measure, staves=1))
+    assert [(n.pitch, n.onset_s, n.offset_s) for n in read_score(path).notes] == [
+        (76, 0.0, 2.0),
+        (74, 2.0, 4.0),
+    ]
+    assert musicxml.score_summary(path).ornaments == {}
+    tune = 'X:1\nT:Chords\nM:4/4\nL:1/4\nQ:1/4=60\nK:G\n"G"d2 "C"e2 | "D7"f4 |]\n'
+    song = read_score(_write(tmp_path / "chords.abc", tune))
+    assert [(n.pitch, n.onset_s, n.offset_s) for n in song.notes] == [
+        (74, 0.0, 2.0),
+        (76, 2.0, 4.0),
+        (78, 4.0, 8.0),
+    ]
+
+
 def test_ornaments_too_quick_for_the_goals_frames_are_played_as_written(tmp_path: Path) -> None:
     grace = (
         '<note><grace slash="yes"/><pitch><step>G</step><octave>4</octave></pitch>'

@@ -7,7 +7,8 @@ score is read. Reading conventions (a caller should know these):
 - Every part's notes and chords are read, at the pitch they sound (a transposing
   instrument's part, a clarinet in B-flat, is written as its player reads it); tied notes
   are joined, voice by voice and pitch by pitch (in a chord only its tied pitches go on; a
-  tie does not bridge a rest).
+  tie does not bridge a rest). Chord symbols (a lead sheet's "Am7") are not notes and are
+  not played.
 - Ornaments are played as a performer plays them (:mod:`pianist.music.ornaments`): grace
   notes on the beat, trills, mordents, turns and tremolos (on chords too), none
   of their notes shorter than two of the goal's frames where the written note leaves room;

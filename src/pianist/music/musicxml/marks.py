@@ -136,6 +136,8 @@ def ornament_counts(score: Any) -> dict[str, int]:
     name :class:`~pianist.music.musicxml.reader.ScoreSummary` gives it; only those present."""
     counts: Counter[str] = Counter()
     for element in score.recurse().notes:
+        if "Harmony" in element.classes:
+            continue  # a chord symbol, not a note
         if element.duration.isGrace:
             counts["grace notes"] += 1
         if roll_of(element) is not None:

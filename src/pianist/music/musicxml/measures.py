@@ -222,7 +222,8 @@ EventKind = Literal["note", "other", "tempo", "tempo words", "dynamic"]
 def measure_events(measure: Any) -> list[Event]:
     """A measure's notes, chords, rests, pedal changes, tempo indications (words that name a
     tempo as the metronome mark they stand for) and dynamics, in time order (through its
-    voices)."""
+    voices). Chord symbols (a lead sheet's "Am7", music21's ``Harmony``) are not notes: music21
+    gives them as chords of no length, which would play as grace notes."""
     from music21 import tempo
 
     voice_of = {id(e): _voice(e) for e in measure.recurse().notes}  # before flattening
@@ -231,6 +232,8 @@ def measure_events(measure: Any) -> list[Event]:
     classes = ("GeneralNote", "PedalBounce", "TempoIndication", "Dynamic", "TextExpression")
     events = []
     for e in flat.getElementsByClass(classes):
+        if "Harmony" in e.classes:
+            continue  # a chord symbol names a chord for an accompanist; it writes no notes
         kind: EventKind = (
             "note"
             if id(e) in notes
