@@ -1024,15 +1024,16 @@ MEI = """<?xml version="1.0" encoding="UTF-8"?>
 
 
 def test_an_abc_fermata_shorthand_keeps_its_note(tmp_path: Path) -> None:
-    # "HE": E under a fermata. music21 alone drops the E and plays F on the third beat; the
-    # H of the history field, of the quoted text and of the comment are not fermatas.
+    # "HE": E under a fermata, held twice as long. music21 alone drops the E and plays F on
+    # the third beat; the H of the history field, of the quoted text and of the comment are
+    # not fermatas.
     tune = 'X:1\nT:Held\nH:Heard in Hexham\nM:4/4\nL:1/4\nQ:1/4=60\nK:C\n"Hi"C D HE F|] % Hm\n'
     song = read_score(_write(tmp_path / "held.abc", tune))
-    assert [(n.pitch, n.onset_s) for n in song.notes] == [
-        (60, 0.0),
-        (62, 1.0),
-        (64, 2.0),
-        (65, 3.0),
+    assert [(n.pitch, n.onset_s, n.offset_s) for n in song.notes] == [
+        (60, 0.0, 1.0),
+        (62, 1.0, 2.0),
+        (64, 2.0, 4.0),
+        (65, 4.0, 5.0),
     ]
 
 
@@ -1087,7 +1088,51 @@ def test_abc_voices_taking_turns_play_together(tmp_path: Path) -> None:
 
     one_voice = ABC.split("\n\n")[1]
     assert voices_in_blocks(one_voice) == one_voice
-    assert abc_for_music21(_write(tmp_path / "plain.abc", ABC)) is None
+    assert abc_for_music21(_write(tmp_path / "plain.abc", ABC), None).text is None
+
+
+def test_abc_decorations_are_played(tmp_path: Path) -> None:
+    # music21 alone reads only the staccato dot, on single notes, and M as a tenuto.
+    tune = (
+        "X:1\nT:Decorated\nM:4/4\nL:1/4\nQ:1/4=60\nK:G\n"
+        "Tc2 Mc2 | .c !>!c !fermata!c2 | !arpeggio![ceg]2 !p!d !f!e |]\n"
+    )
+    song = read_score(_write(tmp_path / "decorated.abc", tune))
+    notes = [(n.pitch, round(n.onset_s, 3), round(n.offset_s, 3), n.velocity) for n in song.notes]
+    trill = [n for n in notes if n[1] < 2.0]
+    # The trill: C and D in turn, an odd number of notes of at least 0.1 s, ending on C.
+    assert trill[:3] == [(72, 0.0, 0.105, 80), (74, 0.105, 0.211, 80), (72, 0.211, 0.316, 80)]
+    assert len(trill) == 19 and trill[-1] == (72, 1.895, 2.0, 80)
+    assert notes[19:] == [
+        (72, 2.0, 2.1, 80),  # the lower mordent: C, B (in G major), C
+        (71, 2.1, 2.2, 80),
+        (72, 2.2, 4.0, 80),
+        (72, 4.0, 4.7, 86),  # staccato: 0.7 of the note
+        (72, 5.0, 6.0, 93),  # accent: +13
+        (72, 6.0, 10.0, 80),  # the fermata: held twice as long, at most 2 s longer
+        (72, 10.0, 12.0, 80),  # the rolled chord, a frame per note
+        (76, 10.05, 12.0, 80),
+        (79, 10.1, 12.0, 80),
+        (74, 12.0, 13.0, 44),  # p
+        (76, 13.0, 14.0, 89),  # f
+    ]
+    # A voice music21 reads other than its text (it reads one A of this line twice) keeps
+    # none of its decorations, and says so; its notes are read as music21 reads them.
+    odd = "X:1\nM:4/4\nL:1/8\nQ:1/4=60\nK:C\n(TB>c)(B>A) FA z A2 | Mc8 | d8 |]\n"
+    with pytest.warns(UserWarning, match="2 ABC decoration.*left out"):
+        song = read_score(_write(tmp_path / "odd.abc", odd))
+    assert (song.notes[0].pitch, song.notes[0].offset_s) == (71, 0.75)  # no trill
+
+
+def test_abc_double_repeat_signs_and_annotations_keep_their_notes(tmp_path: Path) -> None:
+    # music21 alone loses every note from the A before "::" on (7 notes read), and drops the
+    # note after an annotation that starts with ">".
+    tune = 'X:1\nM:4/4\nL:1/4\nQ:1/4=60\nK:C\n|:ABcA|ABcA::">2,1"Bddd|Bddd:|\n'
+    song = read_score(_write(tmp_path / "twice.abc", tune))
+    first, second = [69, 71, 72, 69] * 4, [71, 74, 74, 74] * 4
+    assert [(n.pitch, n.onset_s) for n in song.notes] == [
+        (pitch, float(k)) for k, pitch in enumerate(first + second)
+    ]
 
 
 def test_humdrum_abc_and_mei_scores(tmp_path: Path, capsys) -> None:

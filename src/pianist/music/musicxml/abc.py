@@ -13,12 +13,31 @@ rewritten here into an equivalent form it reads right:
 - **The fermata shorthand.** music21 drops the note after ``H`` (ABC's shorthand for a
   fermata), shifting every later note of its voice a note early; each ``H`` in the music is
   written out as ``!fermata!``.
+- **Decorations.** music21 reads no ABC decoration but the staccato dot, and that on single
+  notes only; it reads ``M`` (a lower mordent) as a tenuto. The decorations a pianist plays
+  are taken out of the text here (:func:`music_rewritten`) and put on music21's notes
+  after it parses the tune (:func:`put_decorations`): trills (``T``, ``!trill!``), lower and
+  upper mordents (``M``, ``P``, ``!mordent!``, ``!uppermordent!``), turns (``!turn!``,
+  ``!invertedturn!``; an Irish roll, ``~``, as a turn after the note), fermatas (``H``,
+  ``!fermata!``), rolled chords (``!arpeggio!``), staccato (``.``), staccatissimo
+  (``!wedge!``), accents (``L``, ``!>!``, ``!accent!``), tenuto, dynamics (``!p!``,
+  ``!mf!``, ``!sfz!``, ...). Hairpins written ``!<(!`` ... ``!<)!`` are written as the
+  ``!crescendo(!`` ... ``!crescendo)!`` music21 reads. Bowings (``u``, ``v``) are left
+  out. A voice whose notes music21 reads differently from the text (a construct it drops,
+  such as ``&`` overlays) keeps none of its decorations, with a warning.
+- **Repeats.** music21 loses the notes around a bare ``::`` (the end of one repeated section
+  and the start of the next): it is written ``:|:``.
+- **Annotations.** Quoted text placed by its first character (``"^Slow"``, ``">2,1"``) is
+  text for the reader; music21 takes it for a chord symbol, and drops the note after one that
+  starts with ``>``. It is left out.
 """
 
 from __future__ import annotations
 
 import re
+import warnings
 from pathlib import Path
+from typing import Any, NamedTuple
 
 #: A field line (``X:``, ``K:``, ``V:``, ``w:``, ...).
 _FIELD = re.compile(r"[A-Za-z+]:")
@@ -33,20 +52,49 @@ def reference_numbers(text: str) -> list[int]:
     return [int(m[1]) for m in re.finditer(r"^X:\s*(\d+)", text, flags=re.MULTILINE)]
 
 
-def abc_for_music21(path: Path) -> str | None:
+class Decorated(NamedTuple):
+    """A note or chord of an ABC voice, in the order the text gives them, and the decorations
+    written before it."""
+
+    #: Its pitches' letters ("C", "F", ...), sorted: to check it against music21's note.
+    steps: tuple[str, ...]
+    #: Whether it is a grace note (inside ``{...}``).
+    grace: bool
+    #: Its decorations, by their ABC names ("trill", "fermata", "p", ...).
+    names: tuple[str, ...]
+
+
+class AbcText(NamedTuple):
+    """An ABC file's text as music21 should parse it (:func:`abc_for_music21`)."""
+
+    #: The whole file's text, each tune rewritten; None where nothing needed rewriting.
+    text: str | None
+    #: Of the tune read, per voice (music21's parts, in order), its notes and chords and the
+    #: decorations taken out of the text before each.
+    decorations: list[list[Decorated]]
+
+
+def abc_for_music21(path: Path, tune: int | None) -> AbcText:
     """The text of the ABC file at ``path`` with every tune rewritten as the module docstring
-    says; None where nothing needs rewriting."""
+    says, and the decorations of tune ``tune`` (its reference number; None: the file's only or
+    first tune) taken out of it."""
     text = path.read_text(encoding="utf-8", errors="replace")
     # A book's tunes each start at an X: field; the text before the first is the book's.
     starts = [m.start() for m in re.finditer(r"^X:", text, flags=re.MULTILINE)] or [0]
     pieces = [text[: starts[0]]] + [
         text[a:b] for a, b in zip(starts, [*starts[1:], len(text)], strict=True)
     ]
-    rewritten = [pieces[0]] + [
-        shorthand_fermatas_written_out(voices_in_blocks(tune)) for tune in pieces[1:]
-    ]
+    rewritten = [pieces[0]]
+    decorations: list[list[Decorated]] = []
+    for k, piece in enumerate(pieces[1:]):
+        number = re.match(r"X:\s*(\d+)", piece)
+        read = (k == 0) if tune is None else (number is not None and int(number[1]) == tune)
+        piece, voices = music_rewritten(shorthand_fermatas_written_out(voices_in_blocks(piece)))
+        rewritten.append(piece)
+        if read:
+            decorations = voices
     changed = "".join(rewritten)
-    return changed if changed != text else None
+    return AbcText(changed if changed != text else None, decorations)
 
 
 def voices_in_blocks(tune: str) -> str:
@@ -139,3 +187,194 @@ def shorthand_fermatas_written_out(tune: str) -> str:
             out.append(char)
         lines[i] = "".join(out)
     return "".join(lines)
+
+
+#: ABC's one-character decorations (its defaults; a tune's ``U:`` redefinitions are not read).
+_SHORTHAND = {
+    ".": "staccato",
+    "~": "roll",
+    "H": "fermata",
+    "L": "accent",
+    "M": "lowermordent",
+    "O": "coda",
+    "P": "uppermordent",
+    "S": "segno",
+    "T": "trill",
+    "u": "upbow",
+    "v": "downbow",
+}
+#: Decorations a pianist plays, by ABC name: music21's expression or articulation class
+#: (module, name), or a dynamic's name.
+_PLAYED: dict[str, tuple[str, str]] = {
+    "trill": ("expressions", "Trill"),
+    "trill(": ("expressions", "Trill"),
+    "lowermordent": ("expressions", "Mordent"),
+    "mordent": ("expressions", "Mordent"),
+    "uppermordent": ("expressions", "InvertedMordent"),
+    "pralltriller": ("expressions", "InvertedMordent"),
+    "turn": ("expressions", "Turn"),
+    "invertedturn": ("expressions", "InvertedTurn"),
+    "roll": ("expressions", "Turn"),
+    "fermata": ("expressions", "Fermata"),
+    "invertedfermata": ("expressions", "Fermata"),
+    "arpeggio": ("expressions", "ArpeggioMark"),
+    "staccato": ("articulations", "Staccato"),
+    "wedge": ("articulations", "Staccatissimo"),
+    "accent": ("articulations", "Accent"),
+    "emphasis": ("articulations", "Accent"),
+    ">": ("articulations", "Accent"),
+    "tenuto": ("articulations", "Tenuto"),
+    **{
+        level: ("dynamics", level)
+        for level in ("pppp", "ppp", "pp", "p", "mp", "mf", "f", "ff", "fff", "ffff", "sfz")
+    },
+}
+#: Decorations taken out of the text and not played (a string player's bowing).
+_DROPPED = frozenset({"upbow", "downbow"})
+#: ABC 2.1's hairpin forms, written as the ones music21 reads.
+_HAIRPINS = {
+    "<(": "crescendo(",
+    "<)": "crescendo)",
+    ">(": "diminuendo(",
+    ">)": "diminuendo)",
+}
+#: Where a note, chord, grace group or rest starts (after decorations).
+_EVENT_START = re.compile(r"[\^_=]*[A-Ga-g]|\[(?![A-Za-z]:|\d|\|)|\{|[zx]")
+
+
+def music_rewritten(tune: str) -> tuple[str, list[list[Decorated]]]:
+    """One tune's music rewritten line by line (the decorations this module reads taken out,
+    hairpins, repeats and annotations as the module docstring says), and per voice (a ``V:``
+    block, in order; the whole tune where it has none) every note and chord of it with the
+    decorations written before it."""
+    lines = tune.splitlines(keepends=True)
+    key = next((i for i, line in enumerate(lines) if line.startswith("K:")), len(lines))
+    voices: dict[str, list[Decorated]] = {"": []}  # "": the music before any voice field
+    current = ""
+    for i in range(key + 1, len(lines)):
+        voice = _VOICE_LINE.match(lines[i])
+        if voice:
+            current = voice[1]
+            continue
+        if _FIELD.match(lines[i]) or lines[i].startswith("%"):
+            continue
+        lines[i] = _line_rewritten(lines[i], voices.setdefault(current, []))
+    if len(voices) > 1 and not voices.get("", True):
+        del voices[""]  # only fields before the first voice
+    return "".join(lines), list(voices.values())
+
+
+def _line_rewritten(line: str, events: list[Decorated]) -> str:
+    """A line of music rewritten (see :func:`music_rewritten`); each note and chord appended
+    to ``events`` with the decorations before it (a rest or a bar line drops those before
+    it)."""
+    out: list[str] = []
+    pending: list[str] = []
+    grace = False
+    i, n = 0, len(line)
+    while i < n:
+        char = line[i]
+        if char == "%":
+            out.append(line[i:])
+            break
+        if char == '"':  # a chord symbol, kept; an annotation ("^text", ">text"), left out
+            end = line.find('"', i + 1)
+            end = n - 1 if end < 0 else end
+            if line[i + 1 : i + 2] not in ("^", "_", "<", ">", "@"):
+                out.append(line[i : end + 1])
+            i = end + 1
+            continue
+        if line.startswith("::", i) and not (out and out[-1] in "|:"):
+            if line[i + 2 : i + 3] not in ("|", ":"):
+                out.append(":|:")  # music21 loses the notes around a bare "::"
+                pending = []
+                i += 2
+                continue
+        if char in "!+":
+            end = line.find(char, i + 1)
+            name = line[i + 1 : end] if end > i else ""
+            if name in _HAIRPINS:
+                out.append(f"!{_HAIRPINS[name]}!")
+                i = end + 1
+                continue
+            if name in _PLAYED or name in _DROPPED:
+                pending.append(name)
+                i = end + 1
+                continue
+            if end > i:  # another decoration (a segno, "D.C."), kept for music21 to skip
+                out.append(line[i : end + 1])
+                i = end + 1
+                continue
+        if char in _SHORTHAND and _SHORTHAND[char] in {*_PLAYED, *_DROPPED}:
+            rest = re.sub(r"^(?:[.~HLMOPSTuv]|![^!]*!|\+[^+]*\+)*", "", line[i + 1 :])
+            if _EVENT_START.match(rest):
+                pending.append(_SHORTHAND[char])
+                i += 1
+                continue
+        if char == "[" and re.match(r"\[[A-Za-z]:", line[i:]):  # an inline field
+            end = line.find("]", i)
+            end = n - 1 if end < 0 else end
+            out.append(line[i : end + 1])
+            i = end + 1
+            continue
+        if char == "[" and _EVENT_START.match(line[i:]):  # a chord
+            end = line.find("]", i)
+            end = n - 1 if end < 0 else end
+            inside = line[i + 1 : end]
+            steps = tuple(sorted(c.upper() for c in re.findall(r"[A-Ga-g]", inside)))
+            events.append(Decorated(steps, grace, tuple(pending)))
+            pending = []
+            out.append(re.sub(r"[.~HLMOPSTuv]|![^!]*!", "", inside).join("[]"))
+            i = end + 1
+            continue
+        if char in "{}":
+            grace = char == "{"
+        elif char in "ABCDEFGabcdefg":
+            events.append(Decorated((char.upper(),), grace, tuple(pending)))
+            pending = []
+        elif char in "zxZXy|:":
+            pending = []  # a rest's or a bar line's decorations are not read
+        out.append(char)
+        i += 1
+    return "".join(out)
+
+
+def put_decorations(score: Any, voices: list[list[Decorated]], path: Path) -> None:
+    """Put the decorations :func:`music_rewritten` took out of a tune on the notes and
+    chords music21 parsed from it (``score``), in place: voice by voice, the k-th note of a
+    voice's text on music21's k-th note of the part. A voice whose notes music21 read
+    differently (their number or letters) keeps none, with a warning."""
+    if not any(e.names for events in voices for e in events):
+        return
+    from music21 import articulations, dynamics, expressions
+
+    modules = {"expressions": expressions, "articulations": articulations}
+    parts = list(getattr(score, "parts", ())) or [score]
+    lost = 0
+    for part, events in zip(parts, voices, strict=False):
+        notes = [n for n in part.recurse().notes if "Harmony" not in n.classes]
+        read = [(tuple(sorted(p.step for p in n.pitches)), bool(n.duration.isGrace)) for n in notes]
+        if len(parts) != len(voices) or read != [(e.steps, e.grace) for e in events]:
+            lost += sum(len(e.names) for e in events)
+            continue
+        for element, event in zip(notes, events, strict=True):
+            for name in event.names:
+                if name in _DROPPED:
+                    continue
+                module, kind = _PLAYED[name]
+                if module == "dynamics":
+                    element.activeSite.insert(element.offset, dynamics.Dynamic(kind))
+                    continue
+                mark = getattr(modules[module], kind)()
+                if name == "roll":  # an Irish roll: the note, then a turn around it
+                    mark.delay = expressions.OrnamentDelay.DEFAULT_DELAY
+                if module == "articulations":
+                    element.articulations.append(mark)
+                else:
+                    element.expressions.append(mark)
+    if lost:
+        warnings.warn(
+            f"{path}: {lost} ABC decoration(s) (ornaments, articulations, dynamics) left out: "
+            "music21 read the notes of their voice differently from the text",
+            stacklevel=4,
+        )

@@ -13,7 +13,12 @@ from typing import Any
 
 from pianist.music.errors import MusicError, one_line
 from pianist.music.fileio import require_file
-from pianist.music.musicxml.abc import abc_for_music21, reference_numbers
+from pianist.music.musicxml.abc import (
+    Decorated,
+    abc_for_music21,
+    put_decorations,
+    reference_numbers,
+)
 
 #: File suffixes read as MusicXML (``.mxl`` is the compressed form).
 MUSICXML_SUFFIXES = (".musicxml", ".mxl", ".xml")
@@ -65,15 +70,19 @@ def _parse(path: Path, tune: int | None, music21_format: str, kind: str) -> tupl
     try:
         options = {} if tune is None else {"number": tune}
         source: str = str(path)
+        decorations: list[list[Decorated]] = []  # an ABC tune's, put on its notes after
         if path.suffix.lower() in (".musicxml", ".xml"):
             source = _partwise(path.read_bytes()) or source  # music21 reads partwise only
         if music21_format == "abc":
-            source = abc_for_music21(path) or source
+            rewritten = abc_for_music21(path, tune)
+            source, decorations = rewritten.text or source, rewritten.decorations
         score = converter.parse(source, format=music21_format, forceSource=True, **options)
     except Exception as exc:  # music21 raises many types for a file it cannot read
         raise MusicError(f"{path}: not a readable {kind} score ({one_line(exc)})") from None
     tunes = list(getattr(score, "scores", ()))  # music21 parses several tunes into an Opus
     score = tunes[0] if tunes else score
+    with as_music_error(path):
+        put_decorations(score, decorations, path)
     if len(book) > 1:
         title = getattr(score.metadata, "title", None) if score.metadata else None
         warnings.warn(
