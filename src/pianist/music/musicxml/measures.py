@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
+import re
 import warnings
 from collections import Counter
 from pathlib import Path
 from typing import Any, Literal, NamedTuple
 
-from pianist.music.musicxml.timing import words_bpm
 from pianist.music.repeats import Bar, RepeatError, playing_order
 
 
@@ -261,3 +261,22 @@ def _voice(element: Any) -> str | None:
     """The id of the voice a note lies in within its measure (None outside voices)."""
     site = element.activeSite
     return str(site.id) if type(site).__name__ == "Voice" else None
+
+
+#: Words that change the tempo against the one before ("più", "piu", "meno"), not name one.
+_RELATIVE_TEMPO = re.compile(r"\b(più|piu|meno)\b", re.IGNORECASE)
+
+
+def words_bpm(words: str) -> float | None:
+    """The tempo, in quarter notes per minute, that a text expression's words name: "Allegro
+    ma non troppo" gives music21's value for Allegro, 132; None for words that name none, or
+    only a change ("poco più lento", "meno mosso": music21 would read the first as Lento).
+    The value counts quarter notes in every metre, as music21's table does: in alla breve,
+    fast words then read slower than they are played (Presto in 2/2 at quarter = 184 is
+    half = 92), where counting half notes would read them twice as fast (half = 184)."""
+    from music21 import tempo
+
+    if _RELATIVE_TEMPO.search(words):
+        return None
+    bpm = tempo.MetronomeMark(text=words).getQuarterBPM()
+    return None if bpm is None else float(bpm)

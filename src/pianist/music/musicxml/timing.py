@@ -4,12 +4,10 @@ tempo, and fermatas (all in quarter lengths as played)."""
 from __future__ import annotations
 
 import bisect
-import re
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
-if TYPE_CHECKING:  # measures reads tempo words through this module
-    from pianist.music.musicxml.measures import Event, Playing
+from pianist.music.musicxml.measures import Event, Playing
 
 #: Quarter notes per minute before a score's first metronome mark (music21's default).
 DEFAULT_QUARTER_BPM = 120.0
@@ -36,8 +34,9 @@ def tempo_map(
     metronome marks (and other tempo indications) of every part as played: quarter = 120
     before the first (music21's default), and a mark without a number keeps the tempo before
     it. Of marks at one time the last part's holds. Words that name a tempo without a mark
-    ("Allegro", "Langsam": :func:`words_bpm`) set it where no mark does at their time. With
-    ``fermatas``, the time under a fermata in any part is held longer (:func:`_held`)."""
+    ("Allegro", "Langsam": :func:`~pianist.music.musicxml.measures.words_bpm`) set it where
+    no mark does at their time. With ``fermatas``, the time under a fermata in any part is
+    held longer (:func:`_held`)."""
     marks: list[tuple[float, float | None]] = []
     words: list[tuple[float, float | None]] = []
     holds: list[tuple[float, float]] = []
@@ -96,25 +95,6 @@ def _held(
         return seconds(ql) + before[k] + stretch[k] * inside
 
     return held
-
-
-#: Words that change the tempo against the one before ("più", "piu", "meno"), not name one.
-_RELATIVE_TEMPO = re.compile(r"\b(più|piu|meno)\b", re.IGNORECASE)
-
-
-def words_bpm(words: str) -> float | None:
-    """The tempo, in quarter notes per minute, that a text expression's words name: "Allegro
-    ma non troppo" gives music21's value for Allegro, 132; None for words that name none, or
-    only a change ("poco più lento", "meno mosso": music21 would read the first as Lento).
-    The value counts quarter notes in every metre, as music21's table does: in alla breve,
-    fast words then read slower than they are played (Presto in 2/2 at quarter = 184 is
-    half = 92), where counting half notes would read them twice as fast (half = 184)."""
-    from music21 import tempo
-
-    if _RELATIVE_TEMPO.search(words):
-        return None
-    bpm = tempo.MetronomeMark(text=words).getQuarterBPM()
-    return None if bpm is None else float(bpm)
 
 
 def _seconds_through(changes: list[tuple[float, float | None]]) -> Callable[[float], float]:
