@@ -1135,6 +1135,22 @@ def test_abc_double_repeat_signs_and_annotations_keep_their_notes(tmp_path: Path
     ]
 
 
+def test_abc_invisible_and_whole_bar_rests_keep_their_time(tmp_path: Path) -> None:
+    # music21 drops an invisible rest ("x2") and a rest of whole bars ("Z2"), and every later
+    # note comes that much early (here at 0, 4, 6, 14 s); a bar of 3/4 after [M:3/4].
+    tune = (
+        "X:1\nM:4/4\nL:1/4\nQ:1/4=60\nK:C\nc2 z2 | x2 c2 | Z2 | c4 | z4 | d4 | [M:3/4] Z | e3 |]\n"
+    )
+    song = read_score(_write(tmp_path / "rests.abc", tune))
+    assert [(n.pitch, n.onset_s) for n in song.notes] == [
+        (72, 0.0),
+        (72, 6.0),
+        (72, 16.0),
+        (74, 24.0),
+        (76, 31.0),
+    ]
+
+
 def test_humdrum_abc_and_mei_scores(tmp_path: Path, capsys) -> None:
     from pianist.music import load_song
     from pianist.music.fileio import song_files

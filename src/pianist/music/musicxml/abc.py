@@ -27,6 +27,9 @@ rewritten here into an equivalent form it reads right:
   such as ``&`` overlays) keeps none of its decorations, with a warning.
 - **Repeats.** music21 loses the notes around a bare ``::`` (the end of one repeated section
   and the start of the next): it is written ``:|:``.
+- **Rests.** music21 drops an invisible rest (``x``) and a rest of whole bars (``Z4``: four
+  bars), and every later note of the voice comes that much early: they are written as rests
+  (``z``; ``z8|z8|z8|z8`` in 4/4 with eighths as the unit).
 - **Annotations.** Quoted text placed by its first character (``"^Slow"``, ``">2,1"``) is
   text for the reader; music21 takes it for a chord symbol, and drops the note after one that
   starts with ``>``. It is left out.
@@ -36,6 +39,7 @@ from __future__ import annotations
 
 import re
 import warnings
+from fractions import Fraction
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -243,31 +247,73 @@ _EVENT_START = re.compile(r"[\^_=]*[A-Ga-g]|\[(?![A-Za-z]:|\d|\|)|\{|[zx]")
 
 
 def music_rewritten(tune: str) -> tuple[str, list[list[Decorated]]]:
-    """One tune's music rewritten line by line (the decorations this module reads taken out,
-    hairpins, repeats and annotations as the module docstring says), and per voice (a ``V:``
-    block, in order; the whole tune where it has none) every note and chord of it with the
-    decorations written before it."""
+    """One tune's music rewritten line by line (the decorations this module reads taken out;
+    hairpins, repeats, annotations and rests as the module docstring says), and per voice (a
+    ``V:`` block, in order; the whole tune where it has none) every note and chord of it with
+    the decorations written before it."""
     lines = tune.splitlines(keepends=True)
     key = next((i for i, line in enumerate(lines) if line.startswith("K:")), len(lines))
     voices: dict[str, list[Decorated]] = {"": []}  # "": the music before any voice field
     current = ""
-    for i in range(key + 1, len(lines)):
-        voice = _VOICE_LINE.match(lines[i])
+    bar = _Bar()
+    for i, line in enumerate(lines):
+        bar.read_field(line)
+        if i <= key:
+            continue
+        voice = _VOICE_LINE.match(line)
         if voice:
             current = voice[1]
             continue
-        if _FIELD.match(lines[i]) or lines[i].startswith("%"):
+        if _FIELD.match(line) or line.startswith("%"):
             continue
-        lines[i] = _line_rewritten(lines[i], voices.setdefault(current, []))
+        lines[i] = _line_rewritten(line, voices.setdefault(current, []), bar)
     if len(voices) > 1 and not voices.get("", True):
         del voices[""]  # only fields before the first voice
     return "".join(lines), list(voices.values())
 
 
-def _line_rewritten(line: str, events: list[Decorated]) -> str:
+class _Bar:
+    """The length of a bar, from a tune's meter (``M:``) and unit note length (``L:``) fields
+    as they come, to write a multi-measure rest out."""
+
+    def __init__(self) -> None:
+        self.meter: Fraction | None = None
+        self.unit: Fraction | None = None
+
+    def read_field(self, field: str) -> None:
+        """Take an ``M:`` or ``L:`` field (a line, or an inline field's text without its
+        brackets) into account; anything else is ignored."""
+        name, _, value = field.partition(":")
+        value = value.split("%")[0].strip()
+        if name == "M":
+            meters = {"C": Fraction(4, 4), "C|": Fraction(2, 2)}
+            self.meter = meters.get(value) or _fraction(value)
+        elif name == "L":
+            self.unit = _fraction(value)
+
+    def units(self) -> str | None:
+        """A bar's length in unit notes, as ABC writes a length ("8", "3/2"); None in free
+        meter, or where the fields cannot be read."""
+        if self.meter is None:
+            return None
+        # ABC's default unit: a sixteenth in metres under 3/4, an eighth otherwise.
+        unit = self.unit or (Fraction(1, 16) if self.meter < Fraction(3, 4) else Fraction(1, 8))
+        length = self.meter / unit
+        return str(length.numerator) + ("" if length.denominator == 1 else f"/{length.denominator}")
+
+
+def _fraction(text: str) -> Fraction | None:
+    """``"6/8"`` or ``"2+3/8"`` as a fraction; None for anything else."""
+    match = re.fullmatch(r"([\d+]+)\s*/\s*(\d+)", text)
+    if not match or not match[2].strip("0"):
+        return None
+    return Fraction(sum(int(k) for k in match[1].split("+") if k), int(match[2]))
+
+
+def _line_rewritten(line: str, events: list[Decorated], bar: _Bar) -> str:
     """A line of music rewritten (see :func:`music_rewritten`); each note and chord appended
     to ``events`` with the decorations before it (a rest or a bar line drops those before
-    it)."""
+    it). ``bar`` follows the line's inline meter and length fields."""
     out: list[str] = []
     pending: list[str] = []
     grace = False
@@ -314,9 +360,19 @@ def _line_rewritten(line: str, events: list[Decorated]) -> str:
         if char == "[" and re.match(r"\[[A-Za-z]:", line[i:]):  # an inline field
             end = line.find("]", i)
             end = n - 1 if end < 0 else end
+            bar.read_field(line[i + 1 : end])
             out.append(line[i : end + 1])
             i = end + 1
             continue
+        if char in "ZX" and bar.units() is not None:  # a rest of whole bars: one per bar
+            count = re.match(r"\d*", line[i + 1 :])
+            digits = count[0] if count else ""
+            out.append("|".join([f"z{bar.units()}"] * max(1, int(digits or 1))))
+            pending = []
+            i += 1 + len(digits)
+            continue
+        if char == "x":  # an invisible rest: a rest all the same
+            char = "z"
         if char == "[" and _EVENT_START.match(line[i:]):  # a chord
             end = line.find("]", i)
             end = n - 1 if end < 0 else end
