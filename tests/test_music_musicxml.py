@@ -1151,6 +1151,29 @@ def test_abc_invisible_and_whole_bar_rests_keep_their_time(tmp_path: Path) -> No
     ]
 
 
+def test_abc_accidentals_hold_to_the_end_of_the_bar(tmp_path: Path) -> None:
+    # As on paper, an accidental holds for its pitch (letter and octave) to the bar line, and
+    # a note tied over the bar line keeps its own; music21 alone applies each to its own note
+    # (here F# F# in G major, C natural after ^c, E natural in the chord).
+    tune = "X:1\nM:4/4\nL:1/4\nQ:1/4=60\nK:G\n=F F f ^c- | c c [_EG] [EG] | F f E F |]\n"
+    song = read_score(_write(tmp_path / "accidentals.abc", tune))
+    assert [(n.pitch, n.onset_s) for n in song.notes] == [
+        (65, 0.0),  # =F, and the F after it
+        (65, 1.0),
+        (78, 2.0),  # f: another octave, so F# from the key
+        (73, 3.0),  # ^c, tied over the bar line: one note, to 5 s
+        (72, 5.0),  # the bar's next c: natural
+        (63, 6.0),  # _E in a chord, and the E of the next chord
+        (67, 6.0),
+        (63, 7.0),
+        (67, 7.0),
+        (66, 8.0),  # a new bar: the key again
+        (78, 9.0),
+        (64, 10.0),
+        (66, 11.0),
+    ]
+
+
 def test_humdrum_abc_and_mei_scores(tmp_path: Path, capsys) -> None:
     from pianist.music import load_song
     from pianist.music.fileio import song_files

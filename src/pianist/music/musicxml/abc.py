@@ -30,6 +30,9 @@ rewritten here into an equivalent form it reads right:
 - **Rests.** music21 drops an invisible rest (``x``) and a rest of whole bars (``Z4``: four
   bars), and every later note of the voice comes that much early: they are written as rests
   (``z``; ``z8|z8|z8|z8`` in 4/4 with eighths as the unit).
+- **Accidentals.** An accidental holds for its pitch (letter and octave) to the bar's end,
+  and a tied note keeps its own over the bar line; music21 applies each to its own note
+  only. The accidentals a note carries are written out on it.
 - **Annotations.** Quoted text placed by its first character (``"^Slow"``, ``">2,1"``) is
   text for the reader; music21 takes it for a chord symbol, and drops the note after one that
   starts with ``>``. It is left out.
@@ -254,6 +257,7 @@ def music_rewritten(tune: str) -> tuple[str, list[list[Decorated]]]:
     lines = tune.splitlines(keepends=True)
     key = next((i for i, line in enumerate(lines) if line.startswith("K:")), len(lines))
     voices: dict[str, list[Decorated]] = {"": []}  # "": the music before any voice field
+    accidentals: dict[str, _Accidentals] = {}
     current = ""
     bar = _Bar()
     for i, line in enumerate(lines):
@@ -266,7 +270,10 @@ def music_rewritten(tune: str) -> tuple[str, list[list[Decorated]]]:
             continue
         if _FIELD.match(line) or line.startswith("%"):
             continue
-        lines[i] = _line_rewritten(line, voices.setdefault(current, []), bar)
+        events = voices.setdefault(current, [])
+        lines[i] = _line_rewritten(
+            line, events, bar, accidentals.setdefault(current, _Accidentals())
+        )
     if len(voices) > 1 and not voices.get("", True):
         del voices[""]  # only fields before the first voice
     return "".join(lines), list(voices.values())
@@ -302,6 +309,47 @@ class _Bar:
         return str(length.numerator) + ("" if length.denominator == 1 else f"/{length.denominator}")
 
 
+#: A note's pitch in ABC: its accidentals, letter and octave marks.
+_NOTE = re.compile(r"([\^_=]*)([A-Ga-g])([',]*)")
+
+
+class _Accidentals:
+    """The accidentals a voice's notes carry within a bar: in ABC, as on paper, an accidental
+    holds for the notes of its pitch (letter and octave) to the bar's end, and a note tied
+    over the bar line keeps its own. music21 applies each to its own note only."""
+
+    def __init__(self) -> None:
+        self.carried: dict[tuple[str, int], str] = {}
+        self.tied: dict[tuple[str, int], str] = {}  # a tied note's, for the note it is tied to
+
+    def note(self, match: re.Match[str], tied: bool) -> str:
+        """A note's pitch (a :data:`_NOTE` match) with the accidental it carries written out;
+        ``tied``: a tie goes from it to the next."""
+        accidental, letter, marks = match.groups()
+        octave = (1 if letter.islower() else 0) + marks.count("'") - marks.count(",")
+        key = (letter.upper(), octave)
+        if accidental:
+            self.carried[key] = accidental
+            self.tied.pop(key, None)
+        else:
+            accidental = self.tied.pop(key, None) or self.carried.get(key, "")
+        if tied and accidental:
+            self.tied[key] = accidental
+        return accidental + letter + marks
+
+    def chord(self, inside: str, tied: bool) -> str:
+        """A chord's notes (the text inside its brackets), each as :meth:`note` writes it."""
+        pieces, last = [], 0
+        for match in _NOTE.finditer(inside):
+            pieces += [inside[last : match.start()], self.note(match, tied)]
+            last = match.end()
+        return "".join(pieces) + inside[last:]
+
+    def bar(self) -> None:
+        """A bar line: the accidentals end (a tied note's is kept for the note it is tied to)."""
+        self.carried.clear()
+
+
 def _fraction(text: str) -> Fraction | None:
     """``"6/8"`` or ``"2+3/8"`` as a fraction; None for anything else."""
     match = re.fullmatch(r"([\d+]+)\s*/\s*(\d+)", text)
@@ -310,10 +358,13 @@ def _fraction(text: str) -> Fraction | None:
     return Fraction(sum(int(k) for k in match[1].split("+") if k), int(match[2]))
 
 
-def _line_rewritten(line: str, events: list[Decorated], bar: _Bar) -> str:
+def _line_rewritten(
+    line: str, events: list[Decorated], bar: _Bar, accidentals: _Accidentals
+) -> str:
     """A line of music rewritten (see :func:`music_rewritten`); each note and chord appended
     to ``events`` with the decorations before it (a rest or a bar line drops those before
-    it). ``bar`` follows the line's inline meter and length fields."""
+    it). ``bar`` follows the line's inline meter and length fields, ``accidentals`` the
+    voice's accidentals, written out on the notes that carry them."""
     out: list[str] = []
     pending: list[str] = []
     grace = False
@@ -334,6 +385,7 @@ def _line_rewritten(line: str, events: list[Decorated], bar: _Bar) -> str:
             if line[i + 2 : i + 3] not in ("|", ":"):
                 out.append(":|:")  # music21 loses the notes around a bare "::"
                 pending = []
+                accidentals.bar()
                 i += 2
                 continue
         if char in "!+":
@@ -369,6 +421,7 @@ def _line_rewritten(line: str, events: list[Decorated], bar: _Bar) -> str:
             digits = count[0] if count else ""
             out.append("|".join([f"z{bar.units()}"] * max(1, int(digits or 1))))
             pending = []
+            accidentals.bar()
             i += 1 + len(digits)
             continue
         if char == "x":  # an invisible rest: a rest all the same
@@ -376,20 +429,28 @@ def _line_rewritten(line: str, events: list[Decorated], bar: _Bar) -> str:
         if char == "[" and _EVENT_START.match(line[i:]):  # a chord
             end = line.find("]", i)
             end = n - 1 if end < 0 else end
-            inside = line[i + 1 : end]
+            inside = re.sub(r"[.~HLMOPSTuv]|![^!]*!", "", line[i + 1 : end])
             steps = tuple(sorted(c.upper() for c in re.findall(r"[A-Ga-g]", inside)))
             events.append(Decorated(steps, grace, tuple(pending)))
             pending = []
-            out.append(re.sub(r"[.~HLMOPSTuv]|![^!]*!", "", inside).join("[]"))
+            tied = re.match(r"[\d/]*-", line[end + 1 :]) is not None
+            out.append(accidentals.chord(inside, tied).join("[]"))
             i = end + 1
+            continue
+        note = _NOTE.match(line, i) if char in "^_=ABCDEFGabcdefg" else None
+        if note:
+            events.append(Decorated((note[2].upper(),), grace, tuple(pending)))
+            pending = []
+            tied = re.match(r"[\d/]*-", line[note.end() :]) is not None
+            out.append(accidentals.note(note, tied))
+            i = note.end()
             continue
         if char in "{}":
             grace = char == "{"
-        elif char in "ABCDEFGabcdefg":
-            events.append(Decorated((char.upper(),), grace, tuple(pending)))
-            pending = []
         elif char in "zxZXy|:":
             pending = []  # a rest's or a bar line's decorations are not read
+            if char == "|":
+                accidentals.bar()
         out.append(char)
         i += 1
     return "".join(out)
