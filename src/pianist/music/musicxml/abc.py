@@ -23,8 +23,9 @@ rewritten here into an equivalent form it reads right:
   (``!wedge!``), accents (``L``, ``!>!``, ``!accent!``), tenuto, dynamics (``!p!``,
   ``!mf!``, ``!sfz!``, ...). Hairpins written ``!<(!`` ... ``!<)!`` are written as the
   ``!crescendo(!`` ... ``!crescendo)!`` music21 reads. Bowings (``u``, ``v``) are left
-  out. A voice whose notes music21 reads differently from the text (a construct it drops,
-  such as ``&`` overlays) keeps none of its decorations, with a warning.
+  out. A voice whose notes music21 reads differently from the text (it reads a note twice
+  after two broken rhythms in slurs, for one) keeps none of its decorations, with a
+  warning.
 - **Repeats.** music21 loses the notes around a bare ``::`` (the end of one repeated section
   and the start of the next): it is written ``:|:``.
 - **Rests.** music21 drops an invisible rest (``x``) and a rest of whole bars (``Z4``: four
@@ -461,18 +462,22 @@ def put_decorations(score: Any, voices: list[list[Decorated]], path: Path) -> No
     chords music21 parsed from it (``score``), in place: voice by voice, the k-th note of a
     voice's text on music21's k-th note of the part. A voice whose notes music21 read
     differently (their number or letters) keeps none, with a warning."""
-    if not any(e.names for events in voices for e in events):
+    played = [[sum(name in _PLAYED for name in e.names) for e in events] for events in voices]
+    if not any(map(any, played)):
         return
     from music21 import articulations, dynamics, expressions
 
     modules = {"expressions": expressions, "articulations": articulations}
     parts = list(getattr(score, "parts", ())) or [score]
-    lost = 0
-    for part, events in zip(parts, voices, strict=False):
+    if len(parts) != len(voices):  # music21 made other parts of the voices
+        parts, lost = [], sum(map(sum, played))
+    else:
+        lost = 0
+    for part, events, counts in zip(parts, voices, played, strict=False):
         notes = [n for n in part.recurse().notes if "Harmony" not in n.classes]
         read = [(tuple(sorted(p.step for p in n.pitches)), bool(n.duration.isGrace)) for n in notes]
-        if len(parts) != len(voices) or read != [(e.steps, e.grace) for e in events]:
-            lost += sum(len(e.names) for e in events)
+        if read != [(e.steps, e.grace) for e in events]:
+            lost += sum(counts)
             continue
         for element, event in zip(notes, events, strict=True):
             for name in event.names:
