@@ -1174,6 +1174,19 @@ def test_abc_accidentals_hold_to_the_end_of_the_bar(tmp_path: Path) -> None:
     ]
 
 
+def test_abc_parts_play_in_the_headers_order(tmp_path: Path) -> None:
+    # P:ABA, ABC's da capo: music21 alone plays A and B once each. The tune's blank line, which
+    # ends it in a book, stays at its end.
+    tune = (
+        "X:1\nM:4/4\nL:1/4\nQ:1/4=60\nP:A2(B.A)\nK:C\nP:A\nC D E F | G4 |\nP:B % middle\n"
+        "c B A G | F4 |]\n\nX:2\nK:C\nC4 |]\n"
+    )
+    song = read_score(f"{_write(tmp_path / 'parts.abc', tune)}#1")
+    a, b = [60, 62, 64, 65, 67], [72, 71, 69, 67, 65]
+    assert [n.pitch for n in song.notes] == a + a + b + a
+    assert song.duration_s == 32.0
+
+
 def test_humdrum_abc_and_mei_scores(tmp_path: Path, capsys) -> None:
     from pianist.music import load_song
     from pianist.music.fileio import song_files

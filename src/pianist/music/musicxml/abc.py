@@ -10,6 +10,10 @@ rewritten here into an equivalent form it reads right:
   the other; it also takes a ``V:`` only where the voice's name starts with a digit. Each
   voice's turns are gathered into one block, named 1, 2, ... in the order the voices first
   appear (their properties kept).
+- **Parts.** A tune's header can give the order its parts are played in (``P:ABA``, the
+  ABC form of a da capo; ``P:A2B``, ``P:(AB)2C``), the body marking where each part starts
+  (``P:A``); music21 plays the parts once each, as written. They are written out in their
+  order.
 - **The fermata shorthand.** music21 drops the note after ``H`` (ABC's shorthand for a
   fermata), shifting every later note of its voice a note early; each ``H`` in the music is
   written out as ``!fermata!``.
@@ -97,12 +101,55 @@ def abc_for_music21(path: Path, tune: int | None) -> AbcText:
     for k, piece in enumerate(pieces[1:]):
         number = re.match(r"X:\s*(\d+)", piece)
         read = (k == 0) if tune is None else (number is not None and int(number[1]) == tune)
-        piece, voices = music_rewritten(shorthand_fermatas_written_out(voices_in_blocks(piece)))
+        piece = voices_in_blocks(parts_in_order(piece))
+        piece, voices = music_rewritten(shorthand_fermatas_written_out(piece))
         rewritten.append(piece)
         if read:
             decorations = voices
     changed = "".join(rewritten)
     return AbcText(changed if changed != text else None, decorations)
+
+
+def parts_in_order(tune: str) -> str:
+    """One tune's text with its parts written out in the order its header's ``P:`` field
+    gives (``P:ABA``: part A, part B, part A again; ``P:A2B``, ``P:(AB)2C``), each part's
+    music from its ``P:`` line in the body to the next; the tune as it is where the header
+    gives no order, or names a part the body does not mark."""
+    lines = tune.splitlines(keepends=True)
+    key = next((i for i, line in enumerate(lines) if line.startswith("K:")), None)
+    header = [m for line in lines[: key or 0] if (m := re.match(r"P:([^%]*)", line))]
+    order = _part_order(header[0][1]) if header and key is not None else None
+    if not order:
+        return tune
+    assert key is not None
+    before: list[str] = []  # the body before its first part
+    parts: dict[str, list[str]] = {}
+    current: list[str] = before
+    for line in lines[key + 1 :]:
+        label = re.match(r"P:\s*([A-Z])\s*(%.*)?$", line.strip())
+        if label:
+            current = parts.setdefault(label[1], [])
+        elif line.strip():  # a blank line ends the tune: kept for its end only
+            current.append(line if line.endswith("\n") else line + "\n")
+    if not parts or any(name not in parts for name in order):
+        return tune
+    body = before + [line for name in order for line in parts[name]]
+    end = "\n" if not lines[-1].strip() else ""
+    return "".join(lines[: key + 1] + body) + end
+
+
+def _part_order(text: str) -> str | None:
+    """The parts a ``P:`` field's order plays, one letter each (``"A2(BC)2"``: ``"AABCBC"``);
+    None where the text is not such an order (a title, a single part)."""
+    text = re.sub(r"[\s.]", "", text)
+    if not re.fullmatch(r"[A-Z0-9()]+", text) or len(set(re.sub(r"[^A-Z]", "", text))) < 2:
+        return None
+    while "(" in text:  # innermost groups first
+        group = re.search(r"\(([A-Z]*)\)(\d*)", text)
+        if group is None:
+            return None
+        text = text[: group.start()] + group[1] * int(group[2] or 1) + text[group.end() :]
+    return re.sub(r"([A-Z])(\d+)", lambda m: m[1] * int(m[2]), text)
 
 
 def voices_in_blocks(tune: str) -> str:
