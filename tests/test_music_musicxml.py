@@ -1187,6 +1187,20 @@ def test_abc_parts_play_in_the_headers_order(tmp_path: Path) -> None:
     assert song.duration_s == 32.0
 
 
+def test_humdrum_sections_play_in_the_expansion_lists_order(tmp_path: Path) -> None:
+    # Sections A (C D, E) and B (G, A) played A A B A: the da capo that the repeat sign at
+    # A's end (A A B) does not write. music21 alone reads neither the labels nor the list.
+    kern = "**kern\n*>[A,A,B,A]\n*>A\n*M4/4\n=1-\n2c\n2d\n=2\n1e\n=3:|!\n*>B\n1g\n=4\n1a\n==\n*-\n"
+    path = _write(tmp_path / "sections.krn", kern)
+    a, b = [(60, 0.0), (62, 1.0), (64, 2.0)], [(67, 4.0), (69, 6.0)]
+    later = [(pitch, at + 4.0) for pitch, at in a]
+    song = read_score(path)
+    assert [(n.pitch, n.onset_s) for n in song.notes] == a + later + [
+        (pitch, at + 4.0) for pitch, at in b
+    ] + [(pitch, at + 12.0) for pitch, at in a]
+    assert [(n.pitch, n.onset_s) for n in read_score(path, expand_repeats=False).notes] == a + b
+
+
 def test_humdrum_abc_and_mei_scores(tmp_path: Path, capsys) -> None:
     from pianist.music import load_song
     from pianist.music.fileio import song_files

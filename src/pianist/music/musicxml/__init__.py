@@ -20,7 +20,8 @@ score is read. Reading conventions (a caller should know these):
   the next ending of its run). Marks that give no order (a dal segno without a segno, a
   measure played more than :data:`~pianist.music.repeats.MAX_PLAYINGS` times, parts of
   different numbers of measures) are played once as written, with a warning. Every part
-  starts each measure together.
+  starts each measure together. A Humdrum score's sections are played in the order its
+  expansion list gives (``*>[A,A,B,A]``: :mod:`pianist.music.musicxml.humdrum`).
 - Times come from the score's metronome marks (quarter = 120 before the first one, music21's
   default; a mark without a number keeps the tempo before it), and from words that name a
   tempo where no mark does at their time ("Allegro": music21's value for it, quarter = 132).

@@ -9,7 +9,7 @@ import warnings
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 from pianist.music.errors import MusicError, one_line
 from pianist.music.fileio import require_file
@@ -19,6 +19,7 @@ from pianist.music.musicxml.abc import (
     put_decorations,
     reference_numbers,
 )
+from pianist.music.musicxml.humdrum import SectionOrder, section_order
 
 #: File suffixes read as MusicXML (``.mxl`` is the compressed form).
 MUSICXML_SUFFIXES = (".musicxml", ".mxl", ".xml")
@@ -38,15 +39,31 @@ _FORMATS = {
 }
 
 
-def open_score(path: str | os.PathLike[str]) -> tuple[Path, int | None, Any]:
-    """The score's file (a ``BOOK.abc#X`` reference resolved), the ABC tune read (None for
-    one tune or another format) and the parsed score."""
+class OpenScore(NamedTuple):
+    """A score file as :func:`open_score` opens it."""
+
+    #: The score's file (a ``BOOK.abc#X`` reference resolved).
+    path: Path
+    #: The ABC tune read (None for one tune or another format).
+    tune: int | None
+    #: music21's parse of it.
+    score: Any
+    #: A Humdrum score's measures in the order its sections are played
+    #: (:func:`pianist.music.musicxml.humdrum.section_order`); None for other scores.
+    sections: SectionOrder | None
+
+
+def open_score(path: str | os.PathLike[str]) -> OpenScore:
+    """Find, check and parse a score file (see :class:`OpenScore`)."""
     reference = None if Path(path).exists() else tune_reference(os.fspath(path))
     path, tune = reference if reference is not None else (Path(path), None)
     music21_format, kind = _FORMATS.get(path.suffix.lower(), _FORMATS[".musicxml"])
     require_file(path, MusicError, f"{kind} file")
     score, tune = _parse(path, tune, music21_format, kind)
-    return path, tune, score
+    sections = None
+    if music21_format == "humdrum":
+        sections = section_order(path.read_text(encoding="utf-8", errors="replace"))
+    return OpenScore(path, tune, score, sections)
 
 
 def _parse(path: Path, tune: int | None, music21_format: str, kind: str) -> tuple[Any, int | None]:

@@ -8,6 +8,7 @@ from collections import Counter
 from pathlib import Path
 from typing import Any, Literal, NamedTuple
 
+from pianist.music.musicxml.humdrum import SectionOrder
 from pianist.music.repeats import Bar, RepeatError, playing_order
 
 
@@ -19,14 +20,18 @@ class Playing(NamedTuple):
     start: float
 
 
-def played_measures(parts: list[Any], expand: bool, path: Path) -> list[list[Playing]]:
+def played_measures(
+    parts: list[Any], expand: bool, path: Path, sections: SectionOrder | None = None
+) -> list[list[Playing]]:
     """Per part, its measures in the order they are played, each with its start as played.
 
-    With ``expand`` the order follows the repeats (:func:`pianist.music.repeats.playing_order`);
-    without it, or where the marks give no order (then with a warning), the score is played
-    once as written. The parts start each measure together (:func:`_measure_lengths`). A
-    score whose parts have different numbers of measures is played part by part as music21
-    lays it out, and a part without measures as one measure."""
+    With ``expand`` the order is a Humdrum score's ``sections`` where it has them (and music21
+    gives the measures they count), else it follows the repeats
+    (:func:`pianist.music.repeats.playing_order`); without ``expand``, or where the marks give
+    no order (then with a warning), the score is played once as written. The parts start each
+    measure together (:func:`_measure_lengths`). A score whose parts have different numbers of
+    measures is played part by part as music21 lays it out, and a part without measures as
+    one measure."""
     measures = [list(part.getElementsByClass("Measure")) for part in parts]
     if any(not ms for ms in measures) or len({len(ms) for ms in measures}) != 1:
         if expand and all(measures) and _has_repeat_marks(measures):
@@ -40,7 +45,16 @@ def played_measures(parts: list[Any], expand: bool, path: Path) -> list[list[Pla
             for ms, part in zip(measures, parts, strict=True)
         ]
     order = list(range(len(measures[0])))
-    if expand:
+    if expand and sections is not None and sections.total == len(order):
+        order = sections.measures
+    elif expand:
+        if sections is not None:
+            warnings.warn(
+                f"{path}: its sections' order could not be followed (music21 read "
+                f"{len(order)} measures where the score has {sections.total}); its repeat "
+                "signs are played",
+                stacklevel=3,
+            )
         try:
             order = playing_order(_bars(measures))
         except RepeatError as exc:

@@ -11,7 +11,7 @@ from typing import Any, Literal, NamedTuple
 
 from pianist.music.errors import MusicError, one_line
 from pianist.music.midi import MAX_DURATION_S
-from pianist.music.musicxml.files import as_music_error, open_score
+from pianist.music.musicxml.files import OpenScore, as_music_error, open_score
 from pianist.music.musicxml.loudness import DEFAULT_VELOCITY, part_loudness
 from pianist.music.musicxml.marks import (
     articulation_of,
@@ -117,10 +117,8 @@ def read_score(
     """
     if out_of_range not in ("error", "drop"):
         raise ValueError(f"out_of_range must be 'error' or 'drop', got {out_of_range!r}")
-    path, tune, score = open_score(path)
-    return _song_of(
-        score, path, tune, out_of_range, expand_repeats, ornaments, fermatas, articulations
-    )
+    opened = open_score(path)
+    return _song_of(opened, out_of_range, expand_repeats, ornaments, fermatas, articulations)
 
 
 class ScoreSummary(NamedTuple):
@@ -145,38 +143,34 @@ def score_summary(
     Raises:
         MusicError, OutOfRangeError: as :func:`read_score`.
     """
-    path, tune, score = open_score(path)
-    song = _song_of(score, path, tune, out_of_range, True, True, True, True)
+    opened = open_score(path)
+    song = _song_of(opened, out_of_range, True, True, True, True)
     written = _song_of(
-        score,
-        path,
-        tune,
+        opened,
         "drop",
         expand_repeats=False,
         ornaments=False,
         fermatas=True,
         articulations=True,
     )
-    return ScoreSummary(song, written.duration_s, ornament_counts(score))
+    return ScoreSummary(song, written.duration_s, ornament_counts(opened.score))
 
 
 def _song_of(
-    score: Any,
-    path: Path,
-    tune: int | None,
+    opened: OpenScore,
     out_of_range: Literal["error", "drop"],
     expand_repeats: bool,
     ornaments: bool,
     fermatas: bool,
     articulations: bool,
 ) -> Song:
-    """The song a parsed score plays (:func:`read_score`'s options; ``path`` and ``tune``
-    name it and its errors)."""
+    """The song an opened score plays (:func:`read_score`'s options)."""
+    path, tune, score, sections = opened
     parts = list(getattr(score, "parts", ())) or [score]
     raw: list[RawNote] = []
     with as_music_error(path):
         _put_at_sounding_pitch(score, parts, path)
-        played = played_measures(parts, expand_repeats, path)
+        played = played_measures(parts, expand_repeats, path, sections)
         events = {id(m): measure_events(m) for measures in played for m, _ in measures}
         seconds = tempo_map(played, events, fermatas)
         playings: dict[int, list[tuple[float, float]]] = {}
