@@ -1201,6 +1201,47 @@ def test_humdrum_sections_play_in_the_expansion_lists_order(tmp_path: Path) -> N
     assert [(n.pitch, n.onset_s) for n in read_score(path, expand_repeats=False).notes] == a + b
 
 
+# An MEI measure with its control events: a trill on C5, an upper mordent on D5, a fermata
+# on E5, a crescendo from C5 to E5; then a chord rolled downwards.
+MEI_EVENTS = MEI.replace(
+    '<measure n="1"><staff n="1"><layer n="1"><note pname="c" oct="5" dur="2"/>\n'
+    '<note pname="d" oct="5" dur="2"/></layer></staff>',
+    '<measure n="1"><staff n="1"><layer n="1"><note xml:id="c" pname="c" oct="5" dur="2"/>'
+    '<note xml:id="d" pname="d" oct="5" dur="4"/><note xml:id="e" pname="e" oct="5" dur="4"/>'
+    '</layer></staff><trill startid="#c"/><mordent startid="#d" form="upper"/>'
+    '<fermata startid="#e"/><hairpin form="cres" startid="#c" endid="#e"/>',
+).replace(
+    '<note pname="e" oct="5" dur="1"/>\n</layer>',
+    '<chord dur="1"><note xml:id="g1" pname="c" oct="5"/><note xml:id="g2" pname="g" oct="5"/>'
+    '</chord></layer><arpeg plist="#g1 #g2" order="down"/>',
+)
+
+
+def test_mei_ornaments_fermatas_rolls_and_hairpins_are_read(tmp_path: Path) -> None:
+    # music21 reads the notes of an MEI score but none of its control events.
+    path = _write(tmp_path / "events.mei", MEI_EVENTS)
+    right = [
+        (n.pitch, round(n.onset_s, 3), round(n.offset_s, 3), n.velocity)
+        for n in read_score(path, expand_repeats=False).notes
+        if n.hand == "right"
+    ]
+    trill = [n for n in right if n[1] < 1.0]
+    assert len(trill) == 9 and {n[0] for n in trill} == {72, 74} and trill[-1][0] == 72
+    assert right[9:] == [
+        (74, 1.0, 1.1, 86),  # the upper mordent: D E D, louder on the crescendo
+        (76, 1.1, 1.2, 86),
+        (74, 1.2, 1.5, 86),
+        (76, 1.5, 2.5, 90),  # the fermata: twice as long
+        (79, 2.5, 4.5, 93),  # the chord rolled downwards, a frame per note
+        (72, 2.55, 4.5, 93),
+    ]
+    assert musicxml.score_summary(path).ornaments == {
+        "trills": 1,
+        "mordents": 1,
+        "rolled chords": 1,
+    }
+
+
 def test_humdrum_abc_and_mei_scores(tmp_path: Path, capsys) -> None:
     from pianist.music import load_song
     from pianist.music.fileio import song_files

@@ -9,7 +9,9 @@ score is read. Reading conventions (a caller should know these):
   are joined, voice by voice and pitch by pitch (in a chord only its tied pitches go on; a
   tie does not bridge a rest). Chord symbols (a lead sheet's "Am7") are not notes and are
   not played.
-- Ornaments are played as a performer plays them (:mod:`pianist.music.ornaments`): grace
+- Ornaments are played as a performer plays them (:mod:`pianist.music.ornaments`; an ABC
+  tune's decorations and an MEI score's control events, which music21 does not read, are
+  read first: :mod:`pianist.music.musicxml.abc`, :mod:`pianist.music.musicxml.mei`): grace
   notes on the beat, trills, mordents, turns and tremolos (on chords too), none
   of their notes shorter than two of the goal's frames where the written note leaves room;
   rolled chords one frame per note. A chord's trill, mordent or turn keeps its written

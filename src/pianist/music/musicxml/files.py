@@ -20,6 +20,7 @@ from pianist.music.musicxml.abc import (
     reference_numbers,
 )
 from pianist.music.musicxml.humdrum import SectionOrder, section_order
+from pianist.music.musicxml.mei import put_control_events
 
 #: File suffixes read as MusicXML (``.mxl`` is the compressed form).
 MUSICXML_SUFFIXES = (".musicxml", ".mxl", ".xml")
@@ -100,6 +101,8 @@ def _parse(path: Path, tune: int | None, music21_format: str, kind: str) -> tupl
     score = tunes[0] if tunes else score
     with as_music_error(path):
         put_decorations(score, decorations, path)
+        if music21_format == "mei":
+            put_control_events(score, path)
     if len(book) > 1:
         title = getattr(score.metadata, "title", None) if score.metadata else None
         warnings.warn(
