@@ -13,12 +13,8 @@ from typing import Any, NamedTuple
 
 from pianist.music.errors import MusicError, one_line
 from pianist.music.fileio import require_file
-from pianist.music.musicxml.abc import (
-    Decorated,
-    abc_for_music21,
-    put_decorations,
-    reference_numbers,
-)
+from pianist.music.musicxml.abc import abc_for_music21, reference_numbers
+from pianist.music.musicxml.abc_lines import Decorated, put_decorations
 from pianist.music.musicxml.humdrum import SectionOrder, section_order
 from pianist.music.musicxml.mei import put_control_events
 
