@@ -1242,6 +1242,30 @@ def test_mei_ornaments_fermatas_rolls_and_hairpins_are_read(tmp_path: Path) -> N
     }
 
 
+def test_abc_overlays_play_with_their_bar(tmp_path: Path) -> None:
+    # "&" lays a second voice over a bar. music21 alone plays the overlay after the bar's
+    # notes (the C under bar 1 at 4 s, and every later note 4 s late). The overlay becomes
+    # a voice of its own (here the left hand), silent in the bars without one; the repeat
+    # and its endings hold for both.
+    tune = "X:1\nM:4/4\nL:1/4\nQ:1/4=60\nK:G\n|:c d e f & C4 |1 g4 :|2 [CE]2 G2 & c2 (3cde |]\n"
+    song = read_score(_write(tmp_path / "overlay.abc", tune))
+    bar = [(72, 0.0, "right"), (74, 1.0, "right"), (76, 2.0, "right"), (78, 3.0, "right")]
+    assert [(n.pitch, n.onset_s, n.hand) for n in song.notes] == [
+        (60, 0.0, "left"),
+        *bar,
+        (79, 4.0, "right"),
+        (60, 8.0, "left"),
+        *[(pitch, at + 8.0, hand) for pitch, at, hand in bar],
+        (60, 12.0, "right"),
+        (64, 12.0, "right"),
+        (72, 12.0, "left"),
+        (67, 14.0, "right"),
+        (72, 14.0, "left"),
+        (74, 14.666667, "left"),
+        (76, 15.333333, "left"),
+    ]
+
+
 def test_humdrum_abc_and_mei_scores(tmp_path: Path, capsys) -> None:
     from pianist.music import load_song
     from pianist.music.fileio import song_files

@@ -10,6 +10,10 @@ rewritten here into an equivalent form it reads right:
   the other; it also takes a ``V:`` only where the voice's name starts with a digit. Each
   voice's turns are gathered into one block, named 1, 2, ... in the order the voices first
   appear (their properties kept).
+- **Overlays.** ``&`` lays a second voice over a bar (``c2 d2 & C4``); music21 plays the
+  overlay after the bar's notes, so that bar lasts twice as long and every later note comes
+  late. Each overlay becomes a voice of its own, silent (invisible rests of the same
+  lengths) in the bars it has no notes.
 - **Parts.** A tune's header can give the order its parts are played in (``P:ABA``, the
   ABC form of a da capo; ``P:A2B``, ``P:(AB)2C``), the body marking where each part starts
   (``P:A``); music21 plays the parts once each, as written. They are written out in their
@@ -85,7 +89,7 @@ def abc_for_music21(path: Path, tune: int | None) -> AbcText:
     for k, piece in enumerate(pieces[1:]):
         number = re.match(r"X:\s*(\d+)", piece)
         read = (k == 0) if tune is None else (number is not None and int(number[1]) == tune)
-        piece = voices_in_blocks(parts_in_order(piece))
+        piece = overlays_as_voices(voices_in_blocks(parts_in_order(piece)))
         piece, voices = music_rewritten(shorthand_fermatas_written_out(piece))
         rewritten.append(piece)
         if read:
@@ -196,6 +200,137 @@ def voices_in_blocks(tune: str) -> str:
         properties = declared.get(name, "")
         out.append(f"V:{number}" + (f" {properties}" if properties else "") + "\n")
         out.extend(blocks[name])
+    return "".join(out)
+
+
+def overlays_as_voices(tune: str) -> str:
+    """One tune's text with each voice's overlays (``&``) written as voices of their own,
+    after the tune's voices (``V:`` blocks; a tune without any becomes voice 1), silent in
+    the bars they have no notes; the tune as it is where it has no overlay, or music before
+    its first voice field."""
+    lines = tune.splitlines(keepends=True)
+    key = next((i for i, line in enumerate(lines) if line.startswith("K:")), None)
+    if key is None or not any(_segments(line)[1] for line in lines[key + 1 :] if _music(line)):
+        return tune
+    blocks: list[list[str]] = [[]]  # each voice's lines, its V: line first
+    for line in lines[key + 1 :]:
+        if VOICE_LINE.match(line):
+            blocks.append([])
+        blocks[-1].append(line)
+    names = [VOICE_LINE.match(block[0]) for block in blocks[1:]]
+    if names and any(_music(line) for line in blocks[0]):
+        return tune
+    if not names:
+        blocks = [[], ["V:1\n", *blocks[0]]]
+    out = lines[: key + 1] + blocks[0]
+    voices = blocks[1:]
+    for number, (block, name) in enumerate(zip(voices, names or [None], strict=True), start=1):
+        # Named 1, 2, ...: music21 takes a voice only where its name starts with a digit.
+        block[0] = f"V:{number}" + (f" {name[2].strip()}" if name and name[2].strip() else "")
+        block[0] += "\n"
+    number = len(voices)
+    added: list[list[str]] = []
+    for block in voices:
+        split = [_segments(line) if _music(line) else None for line in block]
+        layers = max((len(o) for s in split if s for _, o, _ in s[0]), default=0)
+        out.extend(
+            line if s is None else "".join(main for main, _, _ in s[0]) + "\n"
+            for line, s in zip(block, split, strict=True)
+        )
+        for layer in range(layers):
+            number += 1
+            voice = [f"V:{number}\n"]
+            for line, s in zip(block[1:], split[1:], strict=True):
+                if s is None:
+                    if re.match(r"[KLM]:", line):  # the key, unit length and metre go on
+                        voice.append(line)
+                    continue
+                pieces = [
+                    main if bar else overlays[layer] if layer < len(overlays) else _silent(main)
+                    for main, overlays, bar in s[0]
+                ]
+                voice.append("".join(pieces) + "\n")
+            added.append(voice)
+    return "".join(out + [line for voice in added for line in voice])
+
+
+def _music(line: str) -> bool:
+    """Whether a line of a tune's body is music (not a field, a comment or blank)."""
+    return bool(line.strip()) and not FIELD.match(line) and not line.startswith("%")
+
+
+#: A bar line, with a repeat's colons and an ending's number (``|``, ``:|2``, ``[1``, ``::``).
+_BAR_LINE = re.compile(r"\[?[|:]*\|[|:\]]*(?:\d[\d,\-]*)?|::|\[\d[\d,\-]*")
+#: What ``&`` does not split: quoted text, decorations and inline fields.
+_SPAN = re.compile(r'"[^"]*"?|![^!]*!|\+[^+]*\+|\[[A-Za-z]:[^\]]*\]?')
+
+
+def _segments(line: str) -> tuple[list[tuple[str, list[str], bool]], list[int]]:
+    """A line of music cut at its bar lines: per piece (a bar's part of the line, or a bar
+    line) its text without overlays, its overlays' texts and whether it is a bar line; and
+    where ``&`` is (empty: the line has no overlay)."""
+    text = line.rstrip("\r\n")
+    comment = text.find("%")
+    text = text if comment < 0 else text[:comment]
+    pieces: list[tuple[str, list[str], bool]] = []
+    ampersands: list[int] = []
+    start = i = 0
+    while i < len(text):
+        span = _SPAN.match(text, i)
+        if span and span.end() > i:
+            i = span.end()
+            continue
+        bar = _BAR_LINE.match(text, i)
+        if bar and bar.end() > i:
+            pieces.append(_overlaid(text[start:i], ampersands, start))
+            pieces.append((bar[0], [], True))
+            start = i = bar.end()
+            continue
+        if text[i] == "&":
+            ampersands.append(i)
+        i += 1
+    pieces.append(_overlaid(text[start:], ampersands, start))
+    return pieces, ampersands
+
+
+def _overlaid(bar: str, ampersands: list[int], start: int) -> tuple[str, list[str], bool]:
+    """A bar's text (from ``start`` in its line) as its own notes and its overlays' texts,
+    cut at the ``&`` in it (``ampersands``: positions in the line)."""
+    cuts = [a - start for a in ampersands if start <= a < start + len(bar)]
+    if not cuts:
+        return bar, [], False
+    ends = [*cuts, len(bar)]
+    overlays = [bar[a + 1 : b] for a, b in zip(cuts, ends[1:], strict=True)]
+    return bar[: cuts[0]], overlays, False
+
+
+def _silent(bar: str) -> str:
+    """A bar's notes as invisible rests of the same lengths (``[CE]2 d/ (3efg`` becomes
+    ``x2 x/ (3xxx``): decorations, quoted text, grace notes, ties and slurs left out, inline
+    fields and rests of whole bars kept."""
+    out: list[str] = []
+    i = 0
+    while i < len(bar):
+        char = bar[i]
+        span = _SPAN.match(bar, i)
+        if span and span.end() > i:
+            out.append(span[0] if span[0].startswith("[") else "")  # an inline field stays
+            i = span.end()
+            continue
+        note = re.match(r"[\^_=]*[A-Ga-g][,']*|\[[^\]]*\]?|[zx]", bar[i:])
+        if note:
+            out.append("x")
+            i += note.end()
+            continue
+        if char == "{":
+            end = bar.find("}", i)
+            i = len(bar) if end < 0 else end + 1
+            continue
+        if char == "(" and not bar[i + 1 : i + 2].isdigit() or char in ")-y.~HLMOPSTuv":
+            i += 1
+            continue
+        out.append(char)
+        i += 1
     return "".join(out)
 
 
