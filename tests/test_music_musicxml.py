@@ -1245,25 +1245,31 @@ def test_mei_ornaments_fermatas_rolls_and_hairpins_are_read(tmp_path: Path) -> N
 def test_abc_overlays_play_with_their_bar(tmp_path: Path) -> None:
     # "&" lays a second voice over a bar. music21 alone plays the overlay after the bar's
     # notes (the C under bar 1 at 4 s, and every later note 4 s late). The overlay becomes
-    # a voice of its own (here the left hand), silent in the bars without one; the repeat
-    # and its endings hold for both.
+    # a voice of its own, silent in the bars without one; the repeat and its endings hold
+    # for both. One staff gives no hands (estimated).
     tune = "X:1\nM:4/4\nL:1/4\nQ:1/4=60\nK:G\n|:c d e f & C4 |1 g4 :|2 [CE]2 G2 & c2 (3cde |]\n"
     song = read_score(_write(tmp_path / "overlay.abc", tune))
-    bar = [(72, 0.0, "right"), (74, 1.0, "right"), (76, 2.0, "right"), (78, 3.0, "right")]
-    assert [(n.pitch, n.onset_s, n.hand) for n in song.notes] == [
-        (60, 0.0, "left"),
+    bar = [(72, 0.0), (74, 1.0), (76, 2.0), (78, 3.0)]
+    assert [(n.pitch, n.onset_s) for n in song.notes] == [
+        (60, 0.0),
         *bar,
-        (79, 4.0, "right"),
-        (60, 8.0, "left"),
-        *[(pitch, at + 8.0, hand) for pitch, at, hand in bar],
-        (60, 12.0, "right"),
-        (64, 12.0, "right"),
-        (72, 12.0, "left"),
-        (67, 14.0, "right"),
-        (72, 14.0, "left"),
-        (74, 14.666667, "left"),
-        (76, 15.333333, "left"),
+        (79, 4.0),
+        (60, 8.0),
+        *[(pitch, at + 8.0) for pitch, at in bar],
+        (60, 12.0),
+        (64, 12.0),
+        (72, 12.0),
+        (67, 14.0),
+        (72, 14.0),
+        (74, 14.666667),
+        (76, 15.333333),
     ]
+    assert {n.hand for n in song.notes} == {None}
+    # With a second voice, the overlay is of the first's staff: the right hand.
+    bass = tune.replace("K:G\n", "K:G\nV:1\n") + "V:2\n|:C,4 |1 D,4 :|2 G,,4 |]\n"
+    song = read_score(_write(tmp_path / "two.abc", bass))
+    assert [n.pitch for n in song.notes if n.hand == "left"] == [48, 50, 48, 43]
+    assert {n.pitch for n in song.notes if n.hand == "right"} == {60, 64, 67, 72, 74, 76, 78, 79}
 
 
 def test_humdrum_abc_and_mei_scores(tmp_path: Path, capsys) -> None:

@@ -72,6 +72,9 @@ class AbcText(NamedTuple):
     #: Of the tune read, per voice (music21's parts, in order), its notes and chords and the
     #: decorations taken out of the text before each.
     decorations: list[list[Decorated]]
+    #: Of the tune read, per voice, the voice it was written in (0, 1, ...: an overlay's is
+    #: the voice it lies over); None where it has no overlay (each voice its own).
+    staves: list[int] | None = None
 
 
 def abc_for_music21(path: Path, tune: int | None) -> AbcText:
@@ -86,16 +89,17 @@ def abc_for_music21(path: Path, tune: int | None) -> AbcText:
     ]
     rewritten = [pieces[0]]
     decorations: list[list[Decorated]] = []
+    staves: list[int] | None = None
     for k, piece in enumerate(pieces[1:]):
         number = re.match(r"X:\s*(\d+)", piece)
         read = (k == 0) if tune is None else (number is not None and int(number[1]) == tune)
-        piece = overlays_as_voices(voices_in_blocks(parts_in_order(piece)))
+        piece, sources = overlays_as_voices(voices_in_blocks(parts_in_order(piece)))
         piece, voices = music_rewritten(shorthand_fermatas_written_out(piece))
         rewritten.append(piece)
         if read:
-            decorations = voices
+            decorations, staves = voices, sources
     changed = "".join(rewritten)
-    return AbcText(changed if changed != text else None, decorations)
+    return AbcText(changed if changed != text else None, decorations, staves)
 
 
 def parts_in_order(tune: str) -> str:
@@ -203,15 +207,16 @@ def voices_in_blocks(tune: str) -> str:
     return "".join(out)
 
 
-def overlays_as_voices(tune: str) -> str:
+def overlays_as_voices(tune: str) -> tuple[str, list[int] | None]:
     """One tune's text with each voice's overlays (``&``) written as voices of their own,
     after the tune's voices (``V:`` blocks; a tune without any becomes voice 1), silent in
-    the bars they have no notes; the tune as it is where it has no overlay, or music before
-    its first voice field."""
+    the bars they have no notes; and per voice of it the voice it was written in (0, 1,
+    ...). The tune as it is, and None, where it has no overlay, or music before its first
+    voice field."""
     lines = tune.splitlines(keepends=True)
     key = next((i for i, line in enumerate(lines) if line.startswith("K:")), None)
     if key is None or not any(_segments(line)[1] for line in lines[key + 1 :] if _music(line)):
-        return tune
+        return tune, None
     blocks: list[list[str]] = [[]]  # each voice's lines, its V: line first
     for line in lines[key + 1 :]:
         if VOICE_LINE.match(line):
@@ -219,7 +224,7 @@ def overlays_as_voices(tune: str) -> str:
         blocks[-1].append(line)
     names = [VOICE_LINE.match(block[0]) for block in blocks[1:]]
     if names and any(_music(line) for line in blocks[0]):
-        return tune
+        return tune, None
     if not names:
         blocks = [[], ["V:1\n", *blocks[0]]]
     out = lines[: key + 1] + blocks[0]
@@ -230,7 +235,8 @@ def overlays_as_voices(tune: str) -> str:
         block[0] += "\n"
     number = len(voices)
     added: list[list[str]] = []
-    for block in voices:
+    sources = list(range(len(voices)))
+    for source, block in enumerate(voices):
         split = [_segments(line) if _music(line) else None for line in block]
         layers = max((len(o) for s in split if s for _, o, _ in s[0]), default=0)
         out.extend(
@@ -251,7 +257,8 @@ def overlays_as_voices(tune: str) -> str:
                 ]
                 voice.append("".join(pieces) + "\n")
             added.append(voice)
-    return "".join(out + [line for voice in added for line in voice])
+            sources.append(source)
+    return "".join(out + [line for voice in added for line in voice]), sources
 
 
 def _music(line: str) -> bool:

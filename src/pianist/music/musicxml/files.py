@@ -48,6 +48,9 @@ class OpenScore(NamedTuple):
     #: A Humdrum score's measures in the order its sections are played
     #: (:func:`pianist.music.musicxml.humdrum.section_order`); None for other scores.
     sections: SectionOrder | None
+    #: Per part, the staff (an ABC voice) it was written in, where some parts share one (an
+    #: ABC overlay's part); None otherwise.
+    staves: list[int] | None
 
 
 def open_score(path: str | os.PathLike[str]) -> OpenScore:
@@ -56,17 +59,19 @@ def open_score(path: str | os.PathLike[str]) -> OpenScore:
     path, tune = reference if reference is not None else (Path(path), None)
     music21_format, kind = _FORMATS.get(path.suffix.lower(), _FORMATS[".musicxml"])
     require_file(path, MusicError, f"{kind} file")
-    score, tune = _parse(path, tune, music21_format, kind)
+    score, tune, staves = _parse(path, tune, music21_format, kind)
     sections = None
     if music21_format == "humdrum":
         sections = section_order(path.read_text(encoding="utf-8", errors="replace"))
-    return OpenScore(path, tune, score, sections)
+    return OpenScore(path, tune, score, sections, staves)
 
 
-def _parse(path: Path, tune: int | None, music21_format: str, kind: str) -> tuple[Any, int | None]:
+def _parse(
+    path: Path, tune: int | None, music21_format: str, kind: str
+) -> tuple[Any, int | None, list[int] | None]:
     """The score music21 parses from ``path`` in ``music21_format`` (``kind`` names it in
-    messages), and the reference number of the ABC tune read (``tune``, or a book's first:
-    only that tune is parsed; None for one tune or another format).
+    messages), the reference number of the ABC tune read (``tune``, or a book's first: only
+    that tune is parsed; None for one tune or another format), and :attr:`OpenScore.staves`.
 
     Raises:
         MusicError: music21 missing, or the file not of its format.
@@ -85,11 +90,13 @@ def _parse(path: Path, tune: int | None, music21_format: str, kind: str) -> tupl
         options = {} if tune is None else {"number": tune}
         source: str = str(path)
         decorations: list[list[Decorated]] = []  # an ABC tune's, put on its notes after
+        staves: list[int] | None = None
         if path.suffix.lower() in (".musicxml", ".xml"):
             source = _partwise(path.read_bytes()) or source  # music21 reads partwise only
         if music21_format == "abc":
             rewritten = abc_for_music21(path, tune)
             source, decorations = rewritten.text or source, rewritten.decorations
+            staves = rewritten.staves
         score = converter.parse(source, format=music21_format, forceSource=True, **options)
     except Exception as exc:  # music21 raises many types for a file it cannot read
         raise MusicError(f"{path}: not a readable {kind} score ({one_line(exc)})") from None
@@ -107,7 +114,7 @@ def _parse(path: Path, tune: int | None, music21_format: str, kind: str) -> tupl
             + f" is read (name another as {path.name}#X, X its reference number)",
             stacklevel=3,
         )
-    return score, tune
+    return score, tune, staves
 
 
 #: The encodings a MusicXML file comes in (music21's corpus holds UTF-16 ones).

@@ -165,7 +165,7 @@ def _song_of(
     articulations: bool,
 ) -> Song:
     """The song an opened score plays (:func:`read_score`'s options)."""
-    path, tune, score, sections = opened
+    path, tune, score, sections, staves = opened
     parts = list(getattr(score, "parts", ())) or [score]
     raw: list[RawNote] = []
     with as_music_error(path):
@@ -175,7 +175,10 @@ def _song_of(
         seconds = tempo_map(played, events, fermatas)
         playings: dict[int, list[tuple[float, float]]] = {}
         for measures, hand, loudness in zip(
-            played, _hands_of_parts(parts), part_loudness(played, parts, events), strict=True
+            played,
+            _hands_of_parts(parts, staves),
+            part_loudness(played, parts, events),
+            strict=True,
         ):
             raw.extend(
                 _part_notes(
@@ -224,9 +227,16 @@ def _put_at_sounding_pitch(score: Any, parts: list[Any], path: Path) -> None:
         )
 
 
-def _hands_of_parts(parts: list[Any]) -> tuple[str | None, ...]:
+def _hands_of_parts(parts: list[Any], staves: list[int] | None) -> tuple[str | None, ...]:
     """The hand of each part: two parts are the right (upper) and left hand; otherwise the two
-    staves of a grand staff, if the score has exactly one, and None for the rest."""
+    staves of a grand staff, if the score has exactly one, and None for the rest. Where
+    ``staves`` says which staff each part was written in (an ABC overlay's part shares its
+    voice's), two staves are the two hands, and one or more than two give none."""
+    if staves is not None and len(staves) == len(parts):
+        upper, *others = sorted(set(staves))
+        if len(others) != 1:
+            return (None,) * len(parts)
+        return tuple(RIGHT if staff == upper else LEFT for staff in staves)
     if len(parts) == 2:
         return (RIGHT, LEFT)
     # music21 parses a part of two staves as two PartStaff parts, in staff order.
