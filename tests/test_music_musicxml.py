@@ -1272,6 +1272,29 @@ def test_abc_overlays_play_with_their_bar(tmp_path: Path) -> None:
     assert {n.pitch for n in song.notes if n.hand == "right"} == {60, 64, 67, 72, 74, 76, 78, 79}
 
 
+def test_abc_tunes_of_a_book_keep_their_ends_and_default_unit(tmp_path: Path) -> None:
+    # The first tune's voices are gathered, but the blank line that ends it stays at its end
+    # (gathered after it, its second voice would fall outside the tune). The second tune has
+    # no metre and no L: field: eighths, by the standard (music21 alone refuses it).
+    book = (
+        "X:1\nM:4/4\nL:1/4\nQ:1/4=60\nK:C\nV:1\nc d e f |\nV:2\nC, D, E, F, |\nV:1\n"
+        "g a b c |]\n\nX:2\nQ:1/4=60\nK:C\nC D E F |]\n"
+    )
+    path = _write(tmp_path / "book.abc", book)
+    from pianist.music.musicxml.abc import abc_for_music21
+
+    assert "F, |\n\nX:2" in (abc_for_music21(path, 1).text or "")
+    first = read_score(f"{path}#1")
+    assert [n.pitch for n in first.notes if n.hand == "left"] == [48, 50, 52, 53]
+    second = read_score(f"{path}#2")
+    assert [(n.pitch, n.onset_s, n.offset_s) for n in second.notes] == [
+        (60, 0.0, 0.5),
+        (62, 0.5, 1.0),
+        (64, 1.0, 1.5),
+        (65, 1.5, 2.0),
+    ]
+
+
 def test_humdrum_abc_and_mei_scores(tmp_path: Path, capsys) -> None:
     from pianist.music import load_song
     from pianist.music.fileio import song_files

@@ -14,6 +14,9 @@ rewritten here into an equivalent form it reads right:
   overlay after the bar's notes, so that bar lasts twice as long and every later note comes
   late. Each overlay becomes a voice of its own, silent (invisible rests of the same
   lengths) in the bars it has no notes.
+- **The unit note length.** A tune with neither a metre (``M:``) nor a unit note length
+  (``L:``) has, by the standard, eighths as its unit; music21 refuses it. ``L:1/8`` is
+  written in its header.
 - **Parts.** A tune's header can give the order its parts are played in (``P:ABA``, the
   ABC form of a da capo; ``P:A2B``, ``P:(AB)2C``), the body marking where each part starts
   (``P:A``); music21 plays the parts once each, as written. They are written out in their
@@ -93,13 +96,27 @@ def abc_for_music21(path: Path, tune: int | None) -> AbcText:
     for k, piece in enumerate(pieces[1:]):
         number = re.match(r"X:\s*(\d+)", piece)
         read = (k == 0) if tune is None else (number is not None and int(number[1]) == tune)
-        piece, sources = overlays_as_voices(voices_in_blocks(parts_in_order(piece)))
-        piece, voices = music_rewritten(shorthand_fermatas_written_out(piece))
-        rewritten.append(piece)
+        # The blank lines that end a tune stay at its end, whatever moves before them.
+        music = piece.rstrip()
+        ending = piece[len(music) :]
+        music = unit_length_given(parts_in_order(music + "\n"))
+        music, sources = overlays_as_voices(voices_in_blocks(music))
+        music, voices = music_rewritten(shorthand_fermatas_written_out(music))
+        rewritten.append(music.rstrip("\n") + ending)
         if read:
             decorations, staves = voices, sources
     changed = "".join(rewritten)
     return AbcText(changed if changed != text else None, decorations, staves)
+
+
+def unit_length_given(tune: str) -> str:
+    """One tune's text with the unit note length ABC gives a tune of no metre and no ``L:``
+    field (an eighth) written in its header, which music21 refuses to read without."""
+    lines = tune.splitlines(keepends=True)
+    key = next((i for i, line in enumerate(lines) if line.startswith("K:")), None)
+    if key is None or any(line.startswith(("L:", "M:")) for line in lines[:key]):
+        return tune
+    return "".join([*lines[:key], "L:1/8\n", *lines[key:]])
 
 
 def parts_in_order(tune: str) -> str:
