@@ -57,7 +57,7 @@ def section_order(text: str) -> SectionOrder | None:
     shift = 0 if notes_before_first_bar else 1  # a bar line before any note opens measure 0
     total = bars - shift
     spans: dict[str, list[int]] = {}
-    ends = [bars for bars, _ in starts[1:]] + [bars]
+    ends = [at for at, _ in starts[1:]] + [bars]
     for (begin, name), end in zip(starts, ends, strict=True):
         first_measure = max(0, begin - shift)
         spans.setdefault(name, []).extend(range(first_measure, max(first_measure, end - shift)))
