@@ -1087,7 +1087,7 @@ def test_abc_voices_taking_turns_play_together(tmp_path: Path) -> None:
     from pianist.music.musicxml.abc import abc_for_music21, voices_in_blocks
 
     one_voice = ABC.split("\n\n")[1]
-    assert voices_in_blocks(one_voice) == one_voice
+    assert voices_in_blocks(one_voice) == (one_voice, None)
     assert abc_for_music21(_write(tmp_path / "plain.abc", ABC), None).text is None
 
 
@@ -1240,6 +1240,23 @@ def test_mei_ornaments_fermatas_rolls_and_hairpins_are_read(tmp_path: Path) -> N
         "mordents": 1,
         "rolled chords": 1,
     }
+
+
+def test_abc_voices_on_the_staves_the_score_directive_gives(tmp_path: Path) -> None:
+    # Three voices: a melody and an inner voice on the upper staff, a bass on the lower, as
+    # the %%score directive draws them. Without it, three voices give no hands.
+    tune = (
+        "X:1\nM:4/4\nL:1/4\nQ:1/4=60\n%%score {(S A) | B}\nK:C\n"
+        "[V:S] e f g a |]\n[V:A] c4 |]\n[V:B] C,4 |]\n"
+    )
+    song = read_score(_write(tmp_path / "staves.abc", tune))
+    assert [(n.pitch, n.hand) for n in song.notes if n.onset_s == 0.0] == [
+        (48, "left"),
+        (72, "right"),
+        (76, "right"),
+    ]
+    plain = read_score(_write(tmp_path / "plain.abc", tune.replace("%%score {(S A) | B}\n", "")))
+    assert {n.hand for n in plain.notes} == {None}
 
 
 def test_abc_overlays_play_with_their_bar(tmp_path: Path) -> None:

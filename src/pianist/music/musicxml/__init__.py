@@ -49,7 +49,8 @@ score is read. Reading conventions (a caller should know these):
   is one per note. Notes without one are fingered by ``--fingering auto``.
 - An ABC tune's voices play together, however the file takes turns between them (``V:``
   lines, ``[V:...]`` fields: :mod:`pianist.music.musicxml.abc`); two voices give the hands,
-  the first the right (an overlay, ``&``, its voice's).
+  the first the right (an overlay, ``&``, its voice's), or two staves of a ``%%score``
+  directive do.
 - A MusicXML score written measure by measure (``score-timewise``) is read as the usual
   part by part form.
 - Absurd scores are refused as MIDI files are: a timeline past one hour, no notes.

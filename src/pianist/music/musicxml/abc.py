@@ -9,7 +9,8 @@ rewritten here into an equivalent form it reads right:
   the same time as its first, and it reads no ``[V:...]`` field, so all voices play one after
   the other; it also takes a ``V:`` only where the voice's name starts with a digit. Each
   voice's turns are gathered into one block, named 1, 2, ... in the order the voices first
-  appear (their properties kept).
+  appear (their properties kept). A ``%%score`` directive's staves (``{(S A) | B}``) say
+  which voices share a staff, and so a hand.
 - **Overlays.** ``&`` lays a second voice over a bar (``c2 d2 & C4``); music21 plays the
   overlay after the bar's notes, so that bar lasts twice as long and every later note comes
   late. Each overlay becomes a voice of its own, silent (invisible rests of the same
@@ -75,8 +76,9 @@ class AbcText(NamedTuple):
     #: Of the tune read, per voice (music21's parts, in order), its notes and chords and the
     #: decorations taken out of the text before each.
     decorations: list[list[Decorated]]
-    #: Of the tune read, per voice, the voice it was written in (0, 1, ...: an overlay's is
-    #: the voice it lies over); None where it has no overlay (each voice its own).
+    #: Of the tune read, per voice, the staff it is on (0, 1, ... from the top): its
+    #: ``%%score`` directive's, else each voice its own (an overlay its voice's); None
+    #: where the tune has neither a directive nor an overlay.
     staves: list[int] | None = None
 
 
@@ -100,11 +102,14 @@ def abc_for_music21(path: Path, tune: int | None) -> AbcText:
         music = piece.rstrip()
         ending = piece[len(music) :]
         music = unit_length_given(parts_in_order(music + "\n"))
-        music, sources = overlays_as_voices(voices_in_blocks(music))
+        music, written_on = voices_in_blocks(music)
+        music, sources = overlays_as_voices(music)
         music, voices = music_rewritten(shorthand_fermatas_written_out(music))
         rewritten.append(music.rstrip("\n") + ending)
         if read:
             decorations, staves = voices, sources
+            if written_on is not None:  # each voice's staff, and an overlay's its voice's
+                staves = [written_on[k] for k in sources or range(len(written_on))]
     changed = "".join(rewritten)
     return AbcText(changed if changed != text else None, decorations, staves)
 
@@ -161,15 +166,17 @@ def _part_order(text: str) -> str | None:
     return re.sub(r"([A-Z])(\d+)", lambda m: m[1] * int(m[2]), text)
 
 
-def voices_in_blocks(tune: str) -> str:
+def voices_in_blocks(tune: str) -> tuple[str, list[int] | None]:
     """One tune's text with each voice's turns gathered into one ``V:`` block, the voices
     named 1, 2, ... in the order they first appear (their declarations in the header, which
-    music21 would read as voices of their own, dropped; their properties kept); the tune as
-    it is where it has fewer than two voices, or music before its first voice field."""
+    music21 would read as voices of their own, dropped; their properties kept); and per
+    voice the staff its ``%%score`` directive puts it on (None without one, or where it
+    leaves a voice out). The tune as it is, and None, where it has fewer than two voices, or
+    music before its first voice field."""
     lines = tune.splitlines(keepends=True)
     key = next((i for i, line in enumerate(lines) if line.startswith("K:")), None)
     if key is None:
-        return tune
+        return tune, None
     header: list[str] = []
     declared: dict[str, str] = {}  # a voice's properties, from the header or its first field
     for line in lines[: key + 1]:
@@ -215,13 +222,33 @@ def voices_in_blocks(tune: str) -> str:
     if len(names) < 2 or any(
         line.strip() and not FIELD.match(line) and not line.startswith("%") for line in before
     ):
-        return tune  # one voice, or music before the first voice field (a voice unnamed)
+        return tune, None  # one voice, or music before the first voice field (a voice unnamed)
     out = header + before
     for number, name in enumerate(names, start=1):
         properties = declared.get(name, "")
         out.append(f"V:{number}" + (f" {properties}" if properties else "") + "\n")
         out.extend(blocks[name])
-    return "".join(out)
+    directives = [line for line in header + before if line.startswith(("%%score", "%%staves"))]
+    staves = _staves(directives[-1], names) if directives else None
+    return "".join(out), staves
+
+
+def _staves(directive: str, names: list[str]) -> list[int] | None:
+    """Per voice (``names``), the staff a ``%%score`` (or ``%%staves``) directive puts it on,
+    counting from 0 at the top: each voice is a staff of its own, or one staff with the
+    others in its parentheses (``%%score {(RH1 RH2) | LH}``: 0, 0, 1). None where it leaves
+    a voice out."""
+    tokens = re.findall(r"[(){}\[\]|]|[^\s(){}\[\]|]+", directive.split(None, 1)[-1])
+    staff, grouped, placed = -1, False, {}
+    for token in tokens[1:] if tokens and tokens[0].startswith("%%") else tokens:
+        if token == "(":
+            staff, grouped = staff + 1, True
+        elif token == ")":
+            grouped = False
+        elif token not in "{}[]|":
+            staff += 0 if grouped else 1
+            placed[token] = staff
+    return [placed[name] for name in names] if all(name in placed for name in names) else None
 
 
 def overlays_as_voices(tune: str) -> tuple[str, list[int] | None]:
