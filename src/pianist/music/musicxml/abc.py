@@ -109,7 +109,7 @@ def abc_for_music21(path: Path, tune: int | None) -> AbcText:
         if read:
             decorations, staves = voices, sources
             if written_on is not None:  # each voice's staff, and an overlay's its voice's
-                staves = [written_on[k] for k in sources or range(len(written_on))]
+                staves = [written_on[v] for v in sources or range(len(written_on))]
     changed = "".join(rewritten)
     return AbcText(changed if changed != text else None, decorations, staves)
 
