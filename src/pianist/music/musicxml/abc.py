@@ -57,7 +57,13 @@ import re
 from pathlib import Path
 from typing import NamedTuple
 
-from pianist.music.musicxml.abc_lines import FIELD, VOICE_LINE, Decorated, music_rewritten
+from pianist.music.musicxml.abc_lines import (
+    FIELD,
+    VOICE_LINE,
+    Decorated,
+    header_end,
+    music_rewritten,
+)
 
 #: An inline voice field (``[V:RH]``, ``[V: 2 clef=bass]``).
 _INLINE_VOICE = re.compile(r"\[V:\s*([^\]\s]+)[ \t]*([^\]]*)\]")
@@ -118,7 +124,7 @@ def unit_length_given(tune: str) -> str:
     """One tune's text with the unit note length ABC gives a tune of no metre and no ``L:``
     field (an eighth) written in its header, which music21 refuses to read without."""
     lines = tune.splitlines(keepends=True)
-    key = next((i for i, line in enumerate(lines) if line.startswith("K:")), None)
+    key = header_end(lines)
     if key is None or any(line.startswith(("L:", "M:")) for line in lines[:key]):
         return tune
     return "".join([*lines[:key], "L:1/8\n", *lines[key:]])
@@ -130,7 +136,7 @@ def parts_in_order(tune: str) -> str:
     music from its ``P:`` line in the body to the next; the tune as it is where the header
     gives no order, or names a part the body does not mark."""
     lines = tune.splitlines(keepends=True)
-    key = next((i for i, line in enumerate(lines) if line.startswith("K:")), None)
+    key = header_end(lines)
     header = [m for line in lines[: key or 0] if (m := re.match(r"P:([^%]*)", line))]
     order = _part_order(header[0][1]) if header and key is not None else None
     if not order:
@@ -174,7 +180,7 @@ def voices_in_blocks(tune: str) -> tuple[str, list[int] | None]:
     leaves a voice out). The tune as it is, and None, where it has fewer than two voices, or
     music before its first voice field."""
     lines = tune.splitlines(keepends=True)
-    key = next((i for i, line in enumerate(lines) if line.startswith("K:")), None)
+    key = header_end(lines)
     if key is None:
         return tune, None
     header: list[str] = []
@@ -258,7 +264,7 @@ def overlays_as_voices(tune: str) -> tuple[str, list[int] | None]:
     ...). The tune as it is, and None, where it has no overlay, or music before its first
     voice field."""
     lines = tune.splitlines(keepends=True)
-    key = next((i for i, line in enumerate(lines) if line.startswith("K:")), None)
+    key = header_end(lines)
     if key is None or not any(_segments(line)[1] for line in lines[key + 1 :] if _music(line)):
         return tune, None
     blocks: list[list[str]] = [[]]  # each voice's lines, its V: line first

@@ -20,6 +20,11 @@ FIELD = re.compile(r"[A-Za-z+]:")
 VOICE_LINE = re.compile(r"V:\s*(\S+)[ \t]*(.*)")
 
 
+def header_end(lines: list[str]) -> int | None:
+    """The index of a tune's ``K:`` line, which ends its header; None where it has none."""
+    return next((i for i, line in enumerate(lines) if line.startswith("K:")), None)
+
+
 class Decorated(NamedTuple):
     """A note or chord of an ABC voice, in the order the text gives them, and the decorations
     written before it."""
@@ -91,7 +96,8 @@ def music_rewritten(tune: str) -> tuple[str, list[list[Decorated]]]:
     ``V:`` block, in order; the whole tune where it has none) every note and chord of it with
     the decorations written before it."""
     lines = tune.splitlines(keepends=True)
-    key = next((i for i, line in enumerate(lines) if line.startswith("K:")), len(lines))
+    key = header_end(lines)
+    key = len(lines) if key is None else key
     voices: dict[str, list[Decorated]] = {"": []}  # "": the music before any voice field
     accidentals: dict[str, _Accidentals] = {}
     current = ""
