@@ -60,13 +60,16 @@ def test_looking_ahead_leaves_the_episode_and_the_planner_as_they_were():
     assert refiner.stats()["lookahead_steps_per_step"] == refiner.simulated_steps / 5
 
 
-def test_refining_plays_a_chorale_passage_better_than_the_planner():
+@pytest.mark.parametrize("open_loop", [False, True])
+def test_refining_plays_a_chorale_passage_better_than_the_planner(open_loop):
     # The opening of a chorale, where the planner alone lets keys flicker and strikes late.
     song = window(load_song("bach-chorale-bwv66-6"), 0.0, 3.0)
     alone = play(song, IKPlanner(), physics="fast", seed=0).metrics
-    refined = play(song, Refiner(), physics="fast", seed=0).metrics
+    options = RefineOptions(open_loop=open_loop)
+    refined = play(song, Refiner(options=options), physics="fast", seed=0).metrics
     assert refined["f1"] >= alone["f1"] + 0.03, (alone["f1"], refined["f1"])
     assert refined["controller_options"]["refine"]["candidates"] == RefineOptions().candidates
+    assert refined["controller_options"]["refine"]["open_loop"] is open_loop
     assert 0 < refined["refined_share"] < 1
 
 
@@ -128,6 +131,11 @@ def test_refine_options_parse_and_refuse():
         parse_refine_options("keep_previous=maybe")
     with pytest.raises(ValueError, match="horizon_steps >= 1"):
         RefineOptions(horizon_steps=0)
+    assert parse_refine_options("open_loop=true,threads=0") == RefineOptions(
+        open_loop=True, threads=0
+    )
+    with pytest.raises(ValueError, match="threads >= 0"):
+        RefineOptions(threads=-1)
     assert isinstance(make_controller("refine:candidates=2"), Refiner)
 
 
@@ -189,3 +197,58 @@ def test_continuing_the_unperturbed_look_ahead_plays_the_same_with_fewer_steps()
         runs[continued] = (played.episode.actions, refiner.simulated_steps)
     np.testing.assert_array_equal(runs[False][0], runs[True][0])
     assert runs[True][1] < runs[False][1]
+
+
+def test_a_rollout_reproduces_the_environments_steps():
+    # Faithful physics (no sleeping keys): the batched open-loop look-ahead is the
+    # environment's own stepping, bit for bit, for every sequence of the batch.
+    from pianist.control.rollout_ahead import RolloutAhead
+
+    song = window(load_song("mozart-sonata-k545-allegro"), 0.0, 2.0)
+    planner = IKPlanner()
+    env = make_env(song, planner, physics="faithful")
+    obs, _ = env.reset(seed=0)
+    planner.reset(env, seed=0)
+    for _ in range(10):
+        obs, *_ = env.step(planner.act(obs))
+    penv = env.unwrapped
+    start = penv.snapshot()
+    sites = np.concatenate([hand.sites for hand in planner.hands])
+    actions, keys, tips = [], [], []
+    for _ in range(4):
+        action = planner.act(obs)
+        obs, *_ = env.step(action)
+        actions.append(action)
+        keys.append(penv.data.qpos[penv.scene.key_qpos].copy())
+        tips.append(penv.data.site_xpos[sites].copy())
+    ahead = RolloutAhead(penv.model, penv.config.substeps, penv.scene.key_qpos, sites, nthread=2)
+    other = np.stack(actions) * 0.5  # a second sequence, which must not disturb the first
+    got_keys, got_tips = ahead.run(start.data, np.stack([np.stack(actions), other]))
+    np.testing.assert_array_equal(got_keys[0], np.stack(keys))
+    np.testing.assert_array_equal(got_tips[0], np.stack(tips))
+    assert not np.array_equal(got_keys[1], got_keys[0])
+
+
+def test_the_open_loop_look_ahead_of_no_offset_costs_what_the_planners_own_does():
+    # Replaying the unperturbed look-ahead's actions open-loop (faithful physics: exact)
+    # lands where the planner acting in closed loop did, so it costs the same, finger by finger.
+    song = window(load_song("bach-chorale-bwv66-6"), 0.0, 1.0)
+    refiner = Refiner(options=RefineOptions(candidates=2, horizon_steps=4, open_loop=True))
+    env = make_env(song, refiner, physics="faithful")
+    obs, _ = env.reset(seed=0)
+    refiner.reset(env, seed=0)
+    checked = 0
+    for _ in range(8):
+        state = refiner.handle.snapshot()
+        memory = refiner.planner.memory()
+        proposal = refiner.planner.act(obs)
+        cost, per_finger = refiner._unperturbed(proposal, state, memory)
+        refiner.planner.attach(refiner.handle)
+        refiner.planner.set_memory(memory)
+        zero = np.zeros((1, proposal.size), dtype=np.float32)
+        costs, parts = refiner._open_loop(zero, state)
+        assert costs[0] == cost
+        np.testing.assert_array_equal(parts[0], per_finger)
+        checked += cost > 0
+        obs, *_ = env.step(refiner.planner.act(obs))
+    assert checked  # from home the first chord is missed: costs that are not all zero
