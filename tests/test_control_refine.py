@@ -252,3 +252,8 @@ def test_the_open_loop_look_ahead_of_no_offset_costs_what_the_planners_own_does(
         checked += cost > 0
         obs, *_ = env.step(refiner.planner.act(obs))
     assert checked  # from home the first chord is missed: costs that are not all zero
+    # A second episode of the same scene reuses the look-ahead (its thread pool), not a new one.
+    batched = refiner._batched
+    env.reset(seed=1)
+    refiner.reset(env, seed=1)
+    assert batched is not None and refiner._batched is batched

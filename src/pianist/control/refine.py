@@ -226,17 +226,29 @@ class Refiner(BaseController):
         self._trace: _Trace | None = None
         self._batched: RolloutAhead | None = None
         if self.options.open_loop and self.options.candidates > 0:
-            from pianist.control.rollout_ahead import RolloutAhead
-
+            self._batched = self._rollout_ahead()
             scene = self.handle.scene
-            self._batched = RolloutAhead(
-                self.handle.model,
-                self.handle.config.substeps,
-                scene.key_qpos,
-                self.tip_sites,
-                nthread=self.options.threads,
-            )
             self._threshold = scene.key_max_angle_rad - C.KEY_ACTIVATION_THRESHOLD_RAD
+
+    def _rollout_ahead(self) -> RolloutAhead:
+        """The open-loop look-ahead of this episode's model: the last reset's if it was of the
+        same model and scene (its thread pool and simulator copies are reused), else a new
+        one."""
+        from pianist.control.rollout_ahead import RolloutAhead
+
+        h = self.handle
+        kept = getattr(self, "_kept_rollout", None)
+        if (
+            kept is None
+            or kept.model is not h.model
+            or kept.substeps != h.config.substeps
+            or not np.array_equal(kept.sites, self.tip_sites)
+        ):
+            kept = RolloutAhead(
+                h.model, h.config.substeps, h.scene.key_qpos, self.tip_sites, self.options.threads
+            )
+            self._kept_rollout = kept
+        return kept
 
     def act(self, observation: Any = None) -> np.ndarray:
         proposal = self.planner.act(observation)
