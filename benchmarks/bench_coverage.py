@@ -14,23 +14,31 @@ For every song (``pianist.control.coverage``; one reset of the default planner p
 - with ``--what-if``, the ceiling for hands that could do more than these: the thumb on a
   black key (given its white-key reach there), the wrist turned towards the little finger
   and flexed (``WHAT_IF_WRIST``, rad) at the frames where that reaches more, and both.
+- with ``--plan-variants``, the plan's F1 (its bound: no controller that follows it can
+  pass it) for the default's whole-piece plan and for that plan with one thing changed
+  (``PLAN_VARIANTS``: moves that take no time or a quicker slide, a looser reach model,
+  closer forearms, cheaper moves, no cost at the edge of a finger's reach, the other
+  whole-piece plans), each made at a reset with no episode played.
 
 The ceiling bounds every controller with these hands' reach at their straight-wrist pose: a
 controller can pass the plan's playable share (the reach model is a little conservative)
 but not, by more than the tolerance, the ceiling.
 
 Run: ``python benchmarks/bench_coverage.py [--suite open-etude-12 | --songs a,b]
-[--physics fast] [--play] [--practice practice.json] [--what-if] [--json out.json]``.
+[--physics fast] [--play] [--practice practice.json] [--what-if] [--plan-variants]
+[--json out.json]``.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+from dataclasses import replace
 
 import numpy as np
 
-from pianist.control.coverage import ceiling_scores, plan_coverage, planner_ceiling
+from pianist.control.coverage import ceiling_scores, plan_coverage, plan_f1, planner_ceiling
+from pianist.control.hand_plan import HandPlanCosts
 from pianist.control.hand_split import HandReach
 from pianist.control.planner import IKPlanner, PlannerConfig
 from pianist.eval.session import make_env, play
@@ -39,6 +47,30 @@ from pianist.music import list_songs, load_song
 #: WRJ2 (towards the little finger) and WRJ1 (flexion), rad: the hand's span thumb to little
 #: finger on white keys grows from 0.129 m to 0.160 m (an octave is 0.1645 m).
 WHAT_IF_WRIST = (-0.3, 0.2)
+
+#: The plan the default plays on every open-etude-12 piece (its rehearsal chooses it), made
+#: alone: no rehearsal, so no episode is played.
+_PIECE_F1 = PlannerConfig(best_candidates=("piece-f1",))
+_COSTS = HandPlanCosts()
+
+#: Plans whose F1 ``--plan-variants`` reports: the default's, and it with one thing changed.
+PLAN_VARIANTS: dict[str, PlannerConfig] = {
+    "piece-f1 (the default's)": _PIECE_F1,
+    "moves take no time": replace(
+        _PIECE_F1, hand_plan=replace(_COSTS, slide_acceleration_m_s2=1e6)
+    ),
+    "slide 4x as quick (80 m/s^2)": replace(
+        _PIECE_F1, hand_plan=replace(_COSTS, slide_acceleration_m_s2=80.0)
+    ),
+    "reach_margin 0.15 (0.3)": replace(_PIECE_F1, reach_margin=0.15),
+    "forearm_separation_m 0.15 (0.17)": replace(_PIECE_F1, forearm_separation_m=0.15),
+    "step_f1_move_scale 1 (4)": replace(
+        _PIECE_F1, hand_plan=replace(_COSTS, step_f1_move_scale=1.0)
+    ),
+    "edge_cost 0 (0.25)": replace(_PIECE_F1, hand_plan=replace(_COSTS, edge_cost=0.0)),
+    "split (both hands together)": replace(_PIECE_F1, hand_planning="split"),
+    "piece (key-frames, not step F1)": replace(_PIECE_F1, best_candidates=("piece",)),
+}
 
 
 def coverage_row(name: str, physics: str, played: bool) -> dict:
@@ -95,6 +127,22 @@ def what_if_row(name: str, physics: str) -> dict:
     return row
 
 
+def plan_variant_row(name: str, physics: str) -> dict:
+    """Each of :data:`PLAN_VARIANTS`' plan F1 and the shares of the due key-frames it leaves
+    out and lifts for shifts, for one song."""
+    song = load_song(name, fingering="auto")
+    row = {}
+    for label, config in PLAN_VARIANTS.items():
+        planner = _reset(song, physics, config)
+        coverage = plan_coverage(planner)
+        row[label] = {
+            "plan_f1": plan_f1(planner),
+            "left_out_share": coverage.share("left_out"),
+            "in_shift_share": coverage.share("in_shift"),
+        }
+    return row
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--suite", default="open-etude-12")
@@ -104,6 +152,9 @@ def main() -> None:
     parser.add_argument("--practice", default=None, help="bench_practice.py JSON to show beside")
     parser.add_argument(
         "--what-if", action="store_true", help="also the ceiling for more able hands"
+    )
+    parser.add_argument(
+        "--plan-variants", action="store_true", help="also the plan F1 of other plans"
     )
     parser.add_argument("--json", default=None, help="also write the results to this file")
     args = parser.parse_args()
@@ -153,6 +204,21 @@ def main() -> None:
                 key = f"{c}_{m}"
                 rows_mean = float(np.mean([r["what_if"][key] for r in rows.values()]))
                 print(f"mean {key}: {rows_mean:.3f}")
+    if args.plan_variants:
+        labels = list(PLAN_VARIANTS)
+        print("\nplan F1 (left out, in shift) of each plan")
+        for name in names:
+            variants = plan_variant_row(name, args.physics)
+            rows[name]["plan_variants"] = variants
+            cells = " ".join(f"{variants[label]['plan_f1']:.3f}" for label in labels)
+            print(f"{name[:40]:40s} {cells}", flush=True)
+        print(f"{'plan':40s} {'plan F1':>7s} {'left out':>8s} {'in shift':>8s}")
+        for label in labels:
+            cells = [
+                float(np.mean([r["plan_variants"][label][k] for r in rows.values()]))
+                for k in ("plan_f1", "left_out_share", "in_shift_share")
+            ]
+            print(f"{label:40s} {cells[0]:7.3f} {cells[1]:8.3f} {cells[2]:8.3f}")
     keys = [k for k, v in next(iter(rows.values())).items() if isinstance(v, float)]
     mean = {k: float(np.mean([r[k] for r in rows.values() if k in r])) for k in keys}
     totals = {

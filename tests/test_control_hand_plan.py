@@ -64,6 +64,29 @@ def test_move_frames_follow_the_slide_servo():
     assert move_frames(0.4, DT) == 6
 
 
+def test_move_frames_at_another_slide_acceleration():
+    # Four times the acceleration halves a move's time; a slide that is never slow moves in
+    # a step; no acceleration is refused.
+    assert move_frames(0.4, DT, 80.0) == 3
+    assert move_frames(0.4, DT, 1e6) == 1
+    with pytest.raises(ValueError, match="acceleration"):
+        move_frames(0.4, DT, 0.0)
+
+
+def test_a_plan_with_instant_moves_loses_no_frames_to_a_jump():
+    # The jump without a rest below, planned as if the slide moved in a step: it costs the
+    # one frame of the shift instead of the frames the real slide needs.
+    notes = [(40, 0, 18, 0), (57, 18, 30, 0)]
+    # Both start where the first note is played, so no frames go to getting there.
+    start = _plan(notes, T=30)[1].position[0]
+    _, real = _plan(notes, T=30, start=start)
+    _, instant = _plan(notes, T=30, start=start, slide_acceleration_m_s2=1e6)
+    weight = HandPlanCosts().outer_voice_weight
+    steps = move_frames(17 * PITCH_M, DT)
+    assert steps > 1
+    assert real.cost - instant.cost == pytest.approx((steps - 1) * weight, abs=0.01)
+
+
 def test_a_long_jump_is_made_in_the_rest_before_it():
     # A note, a rest of 8 frames, then a note 40 cm away (the slide needs 6 steps).
     start_key, far_key = 40, 40 + 17

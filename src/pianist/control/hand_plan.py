@@ -79,6 +79,10 @@ class HandPlanCosts:
     """With ``objective="step_f1"``: key-frames' worth of one step's F1, the exchange rate
     against the costs above that are not lost keys (comfort, moves, shifts), which stay in
     key-frames."""
+    slide_acceleration_m_s2: float = SLIDE_ACCELERATION_M_S2
+    """The slide's acceleration the plan counts its moves' frames by (:func:`move_frames`);
+    the servo that plays the plan is not changed by it. Other values are what-ifs
+    (``benchmarks/bench_coverage.py --plan-variants``: moves that take no time)."""
     step_f1_move_scale: float = 4.0
     """With ``objective="step_f1"``, the move, shift and held-key costs times this: a hand
     that moves loses more in execution (late landings, a swing of the wrist) than the
@@ -87,12 +91,17 @@ class HandPlanCosts:
     alone, fast)."""
 
 
-def move_frames(distance_m: np.ndarray | float, dt: float) -> np.ndarray:
+def move_frames(
+    distance_m: np.ndarray | float, dt: float, acceleration_m_s2: float = SLIDE_ACCELERATION_M_S2
+) -> np.ndarray:
     """Control steps a slide needs for a stop-to-stop move of ``distance_m`` (at least 1).
 
-    Bang-bang at :data:`SLIDE_ACCELERATION_M_S2`: t = 2 sqrt(d / a).
+    Bang-bang at ``acceleration_m_s2`` (default :data:`SLIDE_ACCELERATION_M_S2`):
+    t = 2 sqrt(d / a).
     """
-    seconds = 2.0 * np.sqrt(np.abs(np.asarray(distance_m, dtype=float)) / SLIDE_ACCELERATION_M_S2)
+    if not acceleration_m_s2 > 0:
+        raise ValueError(f"a slide's acceleration must be > 0 m/s^2, not {acceleration_m_s2}")
+    seconds = 2.0 * np.sqrt(np.abs(np.asarray(distance_m, dtype=float)) / acceleration_m_s2)
     return np.maximum(1, np.ceil(seconds / dt - 1e-9)).astype(int)
 
 
@@ -516,12 +525,12 @@ def _viterbi(
     T, P = stay.shape
     distance = np.abs(grid[:, None] - grid[None, :])  # (from, to)
     shift = distance > c.shift_m
-    frames_needed = move_frames(distance, dt)  # (P, P)
+    frames_needed = move_frames(distance, dt, c.slide_acceleration_m_s2)  # (P, P)
     moved = distance > 1e-9
     small = np.where(moved, c.small_move_cost + c.small_move_cost_per_m * distance, 0.0)
     # The hand comes from its start position: until the slide can have got to a candidate,
-    # being there plays none of the frame's keys.
-    arrival = move_frames(np.abs(grid - start), dt) - 1  # (P,) first frame it can be there
+    # being there plays none of the frame's keys. (P,): the first frame it can be there.
+    arrival = move_frames(np.abs(grid - start), dt, c.slide_acceleration_m_s2) - 1
     every_key = lost[1:] - lost[:-1]  # (T,) weight of all the keys due at each frame
     early = np.arange(T)[:, None] < arrival[None, :]
     stay = np.where(early, every_key[:, None], stay)

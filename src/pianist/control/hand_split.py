@@ -226,7 +226,7 @@ class _MoveCosts:
         self.c = c
         distance = np.abs(grid[:, None] - grid[None, :])
         self.shift = distance > c.shift_m
-        self.frames_needed = move_frames(distance, dt)
+        self.frames_needed = move_frames(distance, dt, c.slide_acceleration_m_s2)
         self.moved = distance > 1e-9
         self.small = np.where(self.moved, c.small_move_cost + c.small_move_cost_per_m * distance, 0)
         lost = np.zeros(T + 1)

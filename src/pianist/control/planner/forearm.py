@@ -320,7 +320,9 @@ class ForearmPlan:
         # Steps each shift takes: a long jump needs more than one (the slide's servo has a
         # limited force); the whole-piece plan knows this and has paid for the frames.
         if multi_step:
-            need = move_frames(plan[shifts] - plan[shifts - 1], dt)
+            need = move_frames(
+                plan[shifts] - plan[shifts - 1], dt, cfg.hand_plan.slide_acceleration_m_s2
+            )
         else:
             need = np.full(len(shifts), n)
         delays = np.full(len(shifts), delay)
