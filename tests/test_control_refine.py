@@ -136,6 +136,8 @@ def test_refine_options_parse_and_refuse():
     )
     with pytest.raises(ValueError, match="threads >= 0"):
         RefineOptions(threads=-1)
+    with pytest.raises(ValueError, match="open_loop_batch >= 0"):
+        RefineOptions(open_loop_batch=-2)
     assert isinstance(make_controller("refine:candidates=2"), Refiner)
 
 
@@ -257,3 +259,57 @@ def test_the_open_loop_look_ahead_of_no_offset_costs_what_the_planners_own_does(
     env.reset(seed=1)
     refiner.reset(env, seed=1)
     assert batched is not None and refiner._batched is batched
+
+
+def _stubbed_search(open_loop_costs, closed_loop_costs, batch, verify=True):
+    """A refiner whose open-loop and closed-loop look-aheads return the given costs per
+    candidate, searched in batches of ``batch``: (costs returned, batch sizes simulated,
+    candidates looked ahead in closed loop)."""
+    refiner = Refiner(options=RefineOptions(open_loop=True, open_loop_batch=batch, verify=verify))
+    offsets = np.arange(len(open_loop_costs), dtype=np.float32)[:, None]
+    batches, closed = [], []
+
+    def open_loop(chunk, state):
+        batches.append(len(chunk))
+        picked = [open_loop_costs[int(row[0])] for row in chunk]
+        return picked, [np.zeros(10) for _ in picked]
+
+    def look_ahead(proposal, offset, state, memory):
+        closed.append(int(offset[0]))
+        return closed_loop_costs[int(offset[0])], np.zeros(10)
+
+    refiner._open_loop = open_loop
+    refiner._look_ahead = look_ahead
+    costs, _ = refiner._open_loop_search(np.zeros(1), offsets, None, None)
+    return costs, batches, closed
+
+
+def test_the_open_loop_search_ends_after_a_batch_that_misses_nothing():
+    open_loop = [3.0, 2.0, 0.0, 5.0, 1.0, 1.0]
+    # One batch (the default): every candidate, the cheapest verified in closed loop.
+    costs, batches, closed = _stubbed_search(open_loop, [9, 9, 0.0, 9, 9, 9], batch=0)
+    assert (
+        batches == [6] and closed == [2] and costs == [np.inf, np.inf, 0.0, np.inf, np.inf, np.inf]
+    )
+    # In pairs: the second pair holds a candidate that misses nothing, verified so: the
+    # search ends there, as the closed-loop one does, and the third pair is not simulated.
+    costs, batches, closed = _stubbed_search(open_loop, [9, 9, 0.0, 9, 9, 9], batch=2)
+    assert batches == [2, 2] and closed == [2] and costs == [np.inf, np.inf, 0.0, np.inf]
+    # Verified, it misses a key after all: the search goes on, and the candidate cheapest
+    # open-loop is not looked ahead twice.
+    costs, batches, closed = _stubbed_search(open_loop, [9, 9, 1.0, 9, 9, 9], batch=2)
+    assert batches == [2, 2, 2] and closed == [2] and costs[2] == 1.0 and len(costs) == 6
+    # Without verifying, the open-loop cost alone ends it.
+    costs, batches, closed = _stubbed_search(open_loop, [9] * 6, batch=2, verify=False)
+    assert batches == [2, 2] and closed == [] and costs == [3.0, 2.0, 0.0, 5.0]
+
+
+def test_open_loop_batches_simulate_fewer_steps_on_a_passage():
+    song = window(load_song("bach-chorale-bwv66-6"), 0.0, 3.0)
+    steps = {}
+    for batch in (0, 1):
+        options = RefineOptions(open_loop=True, threads=0, open_loop_batch=batch)
+        refiner = Refiner(options=options)
+        play(song, refiner, physics="fast", seed=0)
+        steps[batch] = refiner.simulated_steps
+    assert steps[1] < steps[0]

@@ -106,6 +106,12 @@ class RefineOptions:
     0.866)."""
     threads: int = 2
     """Threads of the open-loop look-ahead (0: the calling thread only)."""
+    open_loop_batch: int = 2
+    """With ``open_loop``: candidates simulated per batch (0: all of them in one). The search
+    ends after a batch with a candidate that misses nothing, as the closed-loop one ends at
+    such a candidate, so easy steps simulate fewer; a batch of ``threads`` keeps every
+    thread busy. In pairs against one batch: the same F1 on open-etude-12 (0.8583 against
+    0.8584, fast), 8-15 % faster (docs/planner.md)."""
     verify: bool = True
     """With ``open_loop``: look the open-loop candidate that cost least ahead again in closed
     loop, and the per-finger combination too; only those compete with the unperturbed one.
@@ -113,8 +119,11 @@ class RefineOptions:
     is played (a push for a key that has not sounded, a finger lined up again)."""
 
     def __post_init__(self) -> None:
-        if self.threads < 0:
-            raise ValueError(f"refine needs threads >= 0, not {self.threads}")
+        if self.threads < 0 or self.open_loop_batch < 0:
+            raise ValueError(
+                "refine needs threads >= 0 and open_loop_batch >= 0, not "
+                f"{self.threads} and {self.open_loop_batch}"
+            )
         if (
             self.candidates < 0
             or self.horizon_steps < 1
@@ -272,13 +281,7 @@ class Refiner(BaseController):
             if index == 0:
                 cost, per_finger = self._unperturbed(proposal, state, memory)
             elif self._batched is not None:
-                more, more_fingers = self._open_loop(offsets[1:], state)
-                if o.verify:
-                    # Only the best of them competes, scored as it will be played.
-                    best = int(np.argmin(more))
-                    verified = self._look_ahead(proposal, offsets[1 + best], state, memory)[0]
-                    more = [np.inf] * len(more)
-                    more[best] = verified
+                more, more_fingers = self._open_loop_search(proposal, offsets[1:], state, memory)
                 costs.extend(more)
                 finger_costs.extend(more_fingers)
                 break
@@ -382,6 +385,45 @@ class Refiner(BaseController):
                 per_finger += part
             costs.append(total)
             per_fingers.append(per_finger)
+        return costs, per_fingers
+
+    def _open_loop_search(
+        self,
+        proposal: np.ndarray,
+        offsets: np.ndarray,
+        state: EnvState,
+        memory: list[dict[str, np.ndarray]],
+    ) -> tuple[list[float], list[np.ndarray]]:
+        """The perturbed candidates ``offsets`` (N, A) looked ahead open-loop, in batches of
+        ``open_loop_batch`` (0: one batch), the search ending after a batch whose cheapest
+        candidate misses nothing (and, with ``verify``, still misses nothing looked ahead in
+        closed loop), as the closed-loop search ends at such a candidate. Returns the costs
+        of the candidates looked ahead (with ``verify`` only the cheapest open-loop one is
+        finite: its closed-loop cost), and their (10,) per-finger parts."""
+        o = self.options
+        size = o.open_loop_batch or len(offsets)
+        costs: list[float] = []
+        per_fingers: list[np.ndarray] = []
+        verified: dict[int, float] = {}
+        for first in range(0, len(offsets), size):
+            more, more_fingers = self._open_loop(offsets[first : first + size], state)
+            costs.extend(more)
+            per_fingers.extend(more_fingers)
+            if first + size >= len(offsets) or min(more) > 0.0:
+                continue
+            best = first + int(np.argmin(more))
+            if not o.verify:
+                break
+            verified[best] = self._look_ahead(proposal, offsets[best], state, memory)[0]
+            if verified[best] == 0.0:
+                break
+        if o.verify:
+            # Only the best of them competes, scored as it will be played.
+            best = int(np.argmin(costs))
+            if best not in verified:
+                verified[best] = self._look_ahead(proposal, offsets[best], state, memory)[0]
+            costs = [np.inf] * len(costs)
+            costs[best] = verified[best]
         return costs, per_fingers
 
     def _unperturbed(
