@@ -2,6 +2,7 @@
 
 import dataclasses
 import json
+import time
 
 import numpy as np
 import pytest
@@ -12,6 +13,7 @@ from pianist.agents.practice import (
     goal_fingerprint,
     load_practice,
     practise,
+    same_goal,
     save_practice,
     write_practice_config,
 )
@@ -21,7 +23,7 @@ from pianist.control.planner import IKPlanner, PlannerConfig
 from pianist.control.refine import RefineOptions
 from pianist.env.handle import control_handle
 from pianist.eval.session import play
-from pianist.music import load_song
+from pianist.music import goal_frames, load_song
 from pianist.music.transforms import window
 
 # The opening of a chorale, where the planner alone lets keys flicker and strikes late, so
@@ -163,16 +165,25 @@ def test_bad_practice_settings_are_refused():
         PracticeConfig(plans=())
 
 
-def test_train_practice_then_eval_and_play_it(tmp_path, capsys):
+def test_train_practice_then_eval_and_play_it(tmp_path, capsys, monkeypatch):
     song = tmp_path / "song.mid"
     from pianist.music.midi import write_midi
 
     write_midi(window(load_song("twinkle-twinkle"), 0.0, 2.0), song)
     run = tmp_path / "run"
-    args = ["train", str(song), "--preset", "practice", "--physics", "fast", "--passes", "1"]
+    monkeypatch.chdir(tmp_path)  # the song given by a relative path
+    args = ["train", "song.mid", "--preset", "practice", "--physics", "fast", "--passes", "1"]
+    start = time.perf_counter()
     assert main([*args, "--out", str(run), "--no-progress"]) == 0
+    wall = time.perf_counter() - start
     log = [json.loads(line) for line in (run / "log.jsonl").read_text().splitlines()]
     assert [row["pass"] for row in log] == [0, 1]
+    # Each pass's seconds count from the start once (pass 0's were counted twice before).
+    assert 0 < log[0]["seconds"] < log[1]["seconds"] <= wall
+    # The run records the file by its absolute path: resumed from anywhere, it finds it.
+    assert json.loads((run / "config.json").read_text())["song"] == str(song.resolve())
+    (tmp_path / "elsewhere").mkdir()
+    monkeypatch.chdir(tmp_path / "elsewhere")
     best = max(row["f1"] for row in log)
     assert main(["eval", str(run), str(song)]) == 0
     metrics = json.loads((run / "eval" / "metrics.json").read_text())
@@ -184,6 +195,45 @@ def test_train_practice_then_eval_and_play_it(tmp_path, capsys):
     log = [json.loads(line) for line in (run / "log.jsonl").read_text().splitlines()]
     assert [row["pass"] for row in log] == [0, 1, 2]
     capsys.readouterr()
+
+
+def test_a_fingerprint_covers_the_fingering_and_still_reads_older_ones():
+    goal = goal_frames(SONG)
+    refingered = goal_frames(load_song(SONG, fingering="robot"))
+    assert np.array_equal(goal.keys, refingered.keys)
+    assert not np.array_equal(goal.fingers, refingered.fingers)
+    assert same_goal(goal, goal_fingerprint(goal))
+    assert not same_goal(refingered, goal_fingerprint(goal))
+    # A table saved before the fingering was covered is checked on the keys and pedal alone.
+    legacy = goal_fingerprint(goal, fingering=False)
+    assert len(legacy) == 16 and same_goal(refingered, legacy)
+    assert not same_goal(goal_frames(window(SONG, 0.0, 1.0)), legacy)
+
+
+def test_a_practised_piece_is_refused_with_another_fingering(practised):
+    planner = CorrectedPlanner(practised.table, fingerprint=practised.fingerprint)
+    with pytest.raises(ValueError, match="another lead-in or fingering"):
+        play(load_song(SONG, fingering="robot"), planner, physics="fast")
+
+
+def test_damaged_practice_runs_and_busy_folders_are_one_line(tmp_path, capsys):
+    run = tmp_path / "run"
+    run.mkdir()
+    write_practice_config(run, "twinkle-twinkle", FAST)
+    (run / "practice.npz").write_bytes(b"PK\x03\x04 cut short")
+    assert main(["eval", str(run), "twinkle-twinkle", "--out", str(tmp_path / "e")]) == 1
+    assert "is not a practice table" in capsys.readouterr().err
+    assert main(["train", "--resume", str(run), "--no-progress"]) == 1
+    assert "is not a readable practice run" in capsys.readouterr().err
+    # A new run is not started over an earlier one's files (nor beside unrelated ones).
+    before = sorted(p.name for p in run.iterdir())
+    assert main(["train", "c-major-chords", "--out", str(run)]) == 1
+    err = capsys.readouterr().err
+    assert "already holds files" in err and f"--resume {run}" in err
+    assert sorted(p.name for p in run.iterdir()) == before
+    # --resume continues the run's own song: another one given beside it is refused.
+    assert main(["train", "c-major-chords", "--resume", str(run)]) == 1
+    assert "leave out SONG" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize(

@@ -34,6 +34,7 @@ import io
 import json
 import sys
 import time
+import zipfile
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -55,14 +56,30 @@ TABLE = "practice.npz"
 """The file of a practice run directory holding the best table and what it was learned on."""
 
 
-def goal_fingerprint(goal: GoalFrames) -> str:
-    """A hex digest of a song's goal frames (keys and pedal per step): a table learned on one
-    piece is refused for any other, and for the same piece with another lead-in."""
+_FINGERED = "f:"
+"""The prefix of a fingerprint that covers the fingering too (tables saved before it have
+16 hex digits of the keys and pedal alone, and are still checked on those)."""
+
+
+def goal_fingerprint(goal: GoalFrames, fingering: bool = True) -> str:
+    """A digest of a song's goal frames (keys, pedal and, with ``fingering``, the finger on
+    each key per step): a table learned on one piece is refused for any other, and for the
+    same piece with another lead-in or another fingering."""
     digest = hashlib.sha256()
     digest.update(np.asarray(goal.keys.shape, dtype=np.int64).tobytes())
     digest.update(np.packbits(goal.keys).tobytes())
     digest.update(np.packbits(goal.sustain).tobytes())
-    return digest.hexdigest()[:16]
+    if not fingering:
+        return digest.hexdigest()[:16]
+    digest.update(np.ascontiguousarray(goal.fingers, dtype=np.int8).tobytes())
+    return _FINGERED + digest.hexdigest()[:16]
+
+
+def same_goal(goal: GoalFrames, fingerprint: str) -> bool:
+    """Whether ``goal`` is the one ``fingerprint`` (:func:`goal_fingerprint`) was made of; a
+    fingerprint from before the fingering was covered is compared on the keys and pedal."""
+    fingered = fingerprint.startswith(_FINGERED)
+    return goal_fingerprint(goal, fingering=fingered) == fingerprint
 
 
 SCHEDULE: tuple[RefineOptions, ...] = (
@@ -188,7 +205,7 @@ class CorrectedPlanner(IKPlanner):
                 physics = str(data["physics"])
                 # Tables from before the plan was chosen were practised with the default.
                 plan = str(data["hand_planning"]) if "hand_planning" in data else "best"
-        except (OSError, KeyError, ValueError) as exc:
+        except (OSError, KeyError, ValueError, EOFError, zipfile.BadZipFile) as exc:
             raise ValueError(f"{path} is not a practice table ({exc})") from None
         return cls(table, fingerprint=fingerprint, physics=physics, hand_planning=plan)
 
@@ -201,7 +218,7 @@ class CorrectedPlanner(IKPlanner):
     def reset(self, env: gym.Env, seed: int | None = None) -> None:
         super().reset(env, seed)
         handle = control_handle(env)
-        if self.fingerprint is not None and goal_fingerprint(handle.goal) != self.fingerprint:
+        if self.fingerprint is not None and not same_goal(handle.goal, self.fingerprint):
             raise ValueError(
                 "this correction table was practised on another piece (or the same piece "
                 "with another lead-in or fingering); practise this one with "
@@ -301,7 +318,9 @@ def practise(
                 on_pass(result)
         else:
             result = start
-        elapsed0 = result.history[-1]["seconds"] if result.history else 0.0
+        # The seconds of the passes before this call (a resumed run's); a new run's pass 0
+        # was timed from ``t0`` like the passes below.
+        elapsed0 = start.history[-1]["seconds"] if start is not None and start.history else 0.0
         first = result.history[-1]["pass"] + 1 if result.history else 1
         last = config.passes if config.passes is not None else sys.maxsize
         for index in range(first, last + 1):
@@ -512,6 +531,14 @@ def load_practice(run_dir: str | Path) -> tuple[str, PracticeConfig, PracticeRes
                     str(arrays["hand_planning"]) if "hand_planning" in arrays else "best"
                 ),
             )
-    except (OSError, KeyError, ValueError, TypeError, json.JSONDecodeError) as exc:
+    except (
+        OSError,
+        KeyError,
+        ValueError,
+        TypeError,
+        EOFError,
+        zipfile.BadZipFile,
+        json.JSONDecodeError,
+    ) as exc:
         raise ValueError(f"{run_dir} is not a readable practice run ({exc})") from None
     return song, config, result

@@ -11,7 +11,7 @@ from typing import Annotated, Any, Literal
 import tyro
 
 from pianist.agents.config import DEFAULT_PRESET, PRACTICE_PRESET
-from pianist.cli.common import CliError, SongArg
+from pianist.cli.common import CliError, SongArg, check_seed
 from pianist.cli.common import out as _out
 from pianist.cli.common import prepare_dir as _prepare_dir
 from pianist.cli.common import require_jax as _require_jax
@@ -78,6 +78,12 @@ class Train:
         if self.minutes is not None and not (math.isfinite(self.minutes) and self.minutes > 0):
             raise CliError(f"--minutes must be a positive number, not {self.minutes}")
         budget_s = None if self.minutes is None else 60.0 * self.minutes
+        if self.resume is not None and self.song is not None:
+            raise CliError(
+                f"--resume continues the song {self.resume} was started with; leave out SONG"
+            )
+        if self.resume is None:
+            _check_new_run_dir(self.out)
         if self._practice():
             if self.eval_physics is not None:
                 raise CliError("--eval-physics applies to soft actor-critic presets, not practice")
@@ -107,13 +113,14 @@ class Train:
             if self.song is None:
                 raise CliError("give a SONG to train on, or --resume DIR")
             if self.preset not in PRESETS:
-                raise CliError(f"unknown preset {self.preset!r}; choose from {', '.join(PRESETS)}")
+                choices = ", ".join((PRACTICE_PRESET, *PRESETS))
+                raise CliError(f"unknown preset {self.preset!r}; choose from {choices}")
             _prepare_dir(self.out)
             preset: Any = self.preset
             if self.eval_physics is not None:
                 preset = get_preset(self.preset, eval_physics=self.eval_physics)
             result = train(
-                self.song,
+                _song_spec(self.song),
                 preset,
                 self.steps if self.steps is not None else 1_000_000,
                 self.out,
@@ -160,7 +167,7 @@ class Train:
         else:
             if self.song is None:
                 raise CliError("give a SONG to train on, or --resume DIR")
-            run_dir, song_spec = self.out, self.song
+            run_dir, song_spec = self.out, _song_spec(self.song)
             config = PracticeConfig(physics=self.physics or "faithful", workers=2)
         if self.passes is not None:
             config = replace(config, passes=self.passes)
@@ -196,6 +203,25 @@ class Train:
         )
 
 
+def _song_spec(song: str) -> str:
+    """The song as a run records it: a file by its absolute path, so that ``--resume`` finds
+    it from any working directory; a built-in song by its name."""
+    path = Path(song).expanduser()
+    return str(path.resolve()) if path.is_file() else song
+
+
+def _check_new_run_dir(out: Path) -> None:
+    """Refuse to start a run in a folder that holds files already (an earlier run's would be
+    overwritten): an existing run is continued with ``--resume``."""
+    if out.exists() and not out.is_dir():
+        raise CliError(f"--out {out} is a file, not a directory")
+    if out.is_dir() and any(out.iterdir()):
+        raise CliError(
+            f"{out} already holds files: continue a run there with --resume {out}, or give "
+            "another --out"
+        )
+
+
 @dataclass(frozen=True)
 class Eval:
     """Score a trained policy on a song: metrics.json, performance.mid, actions.npy and
@@ -223,6 +249,9 @@ class Eval:
         from pianist.eval.session import play
         from pianist.media.results import MediaOptions, check_output_folder, write_result
 
+        check_seed(self.seed)
+        if self.run_dir.exists() and not self.run_dir.is_dir():
+            raise CliError(f"{self.run_dir} is a file, not a training run's directory")
         out = self.out or self.run_dir / "eval"
         controller: Any
         extra: dict[str, Any] = {"song": self.song, "run": str(self.run_dir)}
