@@ -157,6 +157,82 @@ def test_play_leaves_out_of_range_notes_out_when_told(tmp_path, capsys):
     assert main([*args, "--out-of-range", "drop"]) == 0
     metrics = json.loads((tmp_path / "o" / "metrics.json").read_text())
     assert metrics["f1"] > 0.5  # the three notes in range, one after the other
+    # `info` describes it the same way (the error names the option it has too).
+    assert main(["info", str(path)]) == 1
+    assert main(["info", str(path), "--out-of-range", "drop"]) == 0
+    assert "notes:      3" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["play", "c-major-chords", "--controller", "zero"],
+        ["eval", "/no/such/run", "c-major-chords"],
+        ["dataset", "build", "--songs", "c-major-chords", "--out", "t/x-v0"],
+        ["sweep", "--songs", "c-major-chords"],
+    ],
+)
+def test_a_negative_seed_is_one_line_before_anything_runs(tmp_path, capsys, args):
+    flag = "--seeds" if args[0] == "sweep" else "--seed"
+    out = ["--root", str(tmp_path)] if args[0] == "dataset" else ["--out", str(tmp_path / "o")]
+    assert main([*args, *out, flag, "-1"]) == 1
+    err = capsys.readouterr().err
+    assert err.strip().splitlines() == [f"pianist: error: {flag} must be >= 0, not -1"]
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["play", "c-major-chords", "--controller", "bogus"], "policy:RUN_DIR, bc:DIR"),
+        (["play", "c-major-chords", "--controller", "policy:"], "needs a path: policy:RUN_DIR"),
+        (["play", "c-major-chords", "--controller", "replay:"], "needs a path"),
+        (["train", "c-major-chords", "--preset", "bogus"], "choose from practice, "),
+    ],
+)
+def test_wrong_names_list_every_choice(tmp_path, capsys, args, message):
+    assert main([*args, "--out", str(tmp_path / "o")]) == 1
+    err = capsys.readouterr().err
+    assert message in err and len(err.strip().splitlines()) == 1
+
+
+def test_recorded_actions_replay_only_on_their_own_song(tmp_path, capsys):
+    recorded = tmp_path / "twinkle"
+    args = ["--controller", "zero", "--physics", "fast", "--no-audio"]
+    assert main(["play", "twinkle-twinkle", *args, "--out", str(recorded)]) == 0
+    replay = ["--controller", f"replay:{recorded / 'actions.npy'}", "--no-audio"]
+    assert main(["play", "c-major-chords", *replay, "--out", str(tmp_path / "o")]) == 1
+    assert "replay them on the song" in capsys.readouterr().err
+    text = tmp_path / "text.npy"
+    text.write_text("not an array")
+    replay = ["--controller", f"replay:{text}", "--out", str(tmp_path / "o")]
+    assert main(["play", "c-major-chords", *replay]) == 1
+    assert "is not a .npy array of actions" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_damaged_key_record_fails_the_report_in_one_line(tmp_path, capsys):
+    out = tmp_path / "run"
+    assert _play_zero(out, "--no-audio") == 0
+    for damaged in (b"", b"PK\x03\x04 cut short"):
+        (out / "keys.npz").write_bytes(damaged)
+        assert main(["report", str(out)]) == 1
+        err = capsys.readouterr().err
+        assert "not a readable key record" in err and len(err.strip().splitlines()) == 1
+
+
+def test_a_suite_not_imported_fails_before_its_table(tmp_path, capsys, monkeypatch):
+    monkeypatch.setenv("PIANIST_PIG", str(tmp_path))  # no PIG pieces there
+    assert main(["songs", "--suite", "etude-12"]) == 1
+    captured = capsys.readouterr()
+    assert captured.out == "" and "import-pig" in captured.err
+
+
+def test_eval_of_a_file_says_it_is_not_a_run(tmp_path, capsys):
+    path = tmp_path / "notes.txt"
+    path.write_text("x")
+    assert main(["eval", str(path), "c-major-chords"]) == 1
+    assert "is a file, not a training run" in capsys.readouterr().err
 
 
 def test_unwritable_output_directory(tmp_path):

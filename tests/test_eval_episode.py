@@ -67,8 +67,10 @@ def test_replay_rejects_wrong_width_and_running_out():
     env = PianoEnv(TINY, physics="fast")
     with pytest.raises(ValueError, match="dimensions"):
         run_episode(env, ReplayController(np.zeros((env.num_steps, 5))))
-    with pytest.raises(ValueError, match="ran out"):
-        run_episode(env, ReplayController(np.zeros((2, env.action_space.shape[0]))))
+    width = env.action_space.shape[0]
+    for steps in (2, env.num_steps + 1):  # another song's (or lead-in's) actions
+        with pytest.raises(ValueError, match=f"are {steps} steps, this episode has"):
+            run_episode(env, ReplayController(np.zeros((steps, width))))
 
 
 def test_make_controller_specs():

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import json
 import time
+import zipfile
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -609,7 +610,15 @@ def load_policy(folder: str | Path) -> BCPolicy:
             layers = [(z[f"W{i}"], z[f"b{i}"]) for i in range(int(meta["layers"]))]
             mean, std = z["mean"], z["std"]
         features = Features.from_dict(meta["features"])
-    except (OSError, KeyError, TypeError, json.JSONDecodeError, ValueError) as exc:
+    except (
+        OSError,
+        KeyError,
+        TypeError,
+        json.JSONDecodeError,
+        ValueError,
+        EOFError,
+        zipfile.BadZipFile,
+    ) as exc:
         raise ValueError(f"{folder} is not a readable behaviour-cloning policy ({exc})") from None
     net = NumpyMLP(layers, mean, std, meta["activation"])
     if net.obs_dim != features.dim:

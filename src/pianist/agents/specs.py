@@ -13,6 +13,13 @@ from __future__ import annotations
 
 from typing import Any
 
+#: Every kind of spec, for the error that names them.
+KINDS = (
+    "planner, refine[:FIELD=VALUE,...], search[:refine,FIELD=VALUE,...], mpc[:PRESET,...], "
+    "generalist[:forearm=plan|policy], policy:RUN_DIR, bc:DIR, random, zero or "
+    "replay:ACTIONS.npy"
+)
+
 
 def controller_from_spec(spec: str) -> Any:
     """The controller a ``--controller`` spec names (see the module docstring).
@@ -20,6 +27,9 @@ def controller_from_spec(spec: str) -> Any:
     Raises:
         ValueError: an unknown spec; FileNotFoundError: a run or policy folder that is missing.
     """
+    for prefix, what in (("policy:", "RUN_DIR"), ("bc:", "DIR"), ("replay:", "ACTIONS.npy")):
+        if spec == prefix:
+            raise ValueError(f"--controller {prefix} needs a path: {prefix}{what}")
     if spec.startswith("policy:"):
         from pianist.agents.policy import PolicyController
         from pianist.agents.practice import CorrectedPlanner, is_practice_run
@@ -43,4 +53,9 @@ def controller_from_spec(spec: str) -> Any:
         return BCController(spec.removeprefix("bc:"))
     from pianist.control import make_controller
 
-    return make_controller(spec)
+    try:
+        return make_controller(spec)
+    except ValueError as exc:
+        if str(exc).startswith("unknown controller"):
+            raise ValueError(f"unknown controller {spec!r}; use {KINDS}") from None
+        raise

@@ -8,7 +8,7 @@ from typing import Annotated
 
 import tyro
 
-from pianist.cli.common import CliError, out, prepare_dir, require_jax
+from pianist.cli.common import CliError, check_seed, out, prepare_dir, require_jax
 
 
 @dataclass(frozen=True)
@@ -116,6 +116,7 @@ class BCEval:
     def run(self) -> None:
         if self.episodes < 1:
             raise CliError(f"--episodes must be >= 1, not {self.episodes}")
+        check_seed(self.seed)
         from pianist.agents.bc import evaluate_multi_song, load_policy
         from pianist.env.multi_song import MultiSongEnv
 

@@ -32,6 +32,12 @@ def make_controller_from_spec(spec: str) -> Any:
     return controller_from_spec(spec)
 
 
+def check_seed(seed: int, flag: str = "--seed") -> None:
+    """Refuse a negative seed before anything is built (Gymnasium takes seeds >= 0)."""
+    if seed < 0:
+        raise CliError(f"{flag} must be >= 0, not {seed}")
+
+
 def prepare_dir(path: Path) -> None:
     try:
         path.mkdir(parents=True, exist_ok=True)

@@ -8,7 +8,7 @@ from typing import Annotated, Any, Literal
 
 import tyro
 
-from pianist.cli.common import CliError, prepare_dir
+from pianist.cli.common import CliError, check_seed, prepare_dir
 from pianist.cli.common import out as _out
 
 
@@ -61,6 +61,7 @@ class Build:
             raise CliError(f"--episodes must be >= 1, not {self.episodes}")
         if self.workers < 1:
             raise CliError(f"--workers must be >= 1, not {self.workers}")
+        check_seed(self.seed)
         root = self.root if self.root is not None else default_root()
         prepare_dir(root)
         settings = BuildSettings(

@@ -11,7 +11,7 @@ from typing import Annotated, Literal
 
 import tyro
 
-from pianist.cli.common import CliError, SongArg
+from pianist.cli.common import CliError, SongArg, check_seed
 from pianist.cli.common import make_controller_from_spec as _make_controller
 from pianist.cli.common import out as _out
 
@@ -49,8 +49,9 @@ class Play:
     """auto: keep the song's fingering and estimate what is missing (hands from a MIDI's
     tracks when they say so); file: require the file's own; robot: re-finger every note for
     this robot hand, keeping the song's hands (a human fingering puts the thumb on black keys,
-    which the Shadow thumb cannot press); none: no labels (the fingering reward then matches
-    fingertips to keys; the planner needs fingers)."""
+    which the Shadow thumb cannot press); none: nothing estimated and the labels left out of
+    the reward, which then matches fingertips to keys (the planner still plays a song's own
+    fingers, and refuses a song without them)."""
     out_of_range: Literal["error", "drop"] = "error"
     """A file's notes outside the piano's 88 keys: refuse the file (error) or leave them out
     (drop)."""
@@ -113,6 +114,7 @@ class Play:
         from pianist.music import load_song
 
         # Everything that can be checked before the (long) episode is checked first.
+        check_seed(self.seed)
         if not (math.isfinite(self.initial_buffer_s) and self.initial_buffer_s >= 0):
             raise CliError(f"--initial-buffer-s must be >= 0 seconds, not {self.initial_buffer_s}")
         if self.controller.startswith("policy:") and self.initial_buffer_s:

@@ -30,18 +30,20 @@ class Songs:
         from pianist.music import SUITES, PigDatasetError, list_songs, load_song, song_stats
 
         suites = SUITES if self.suite == "all" else (self.suite,)
+        listed = []  # every suite's names first: a missing one fails before the table starts
+        for suite in suites:
+            try:
+                listed.append((suite, list_songs(suite)))
+            except PigDatasetError:
+                if self.suite == "all":
+                    continue  # PIG suites appear once `pianist import-pig` has run
+                raise
         _out(
             f"{'name':40s} {'suite':17s} {'s':>6s} {'notes':>5s} {'n/s':>5s} "
             f"{'span':>4s} {'poly':>4s}"
         )
         flagged = False
-        for suite in suites:
-            try:
-                names = list_songs(suite)
-            except PigDatasetError:
-                if self.suite == "all":
-                    continue  # PIG suites appear once `pianist import-pig` has run
-                raise
+        for suite, names in listed:
             for name in names:
                 # Known-broken PIG pieces warn on load: a mark in the table, not a warning each.
                 with warnings.catch_warnings(record=True) as caught:
@@ -102,6 +104,9 @@ class Info:
     """A built-in song name, a MIDI file (.mid), a PIG fingering file (.txt) or a score
     (MusicXML .musicxml, .mxl, .xml; Humdrum .krn; ABC .abc; MEI .mei: hands from its
     staves, its finger numbers; needs music21)."""
+    out_of_range: Literal["error", "drop"] = "error"
+    """A file's notes outside the piano's 88 keys: refuse the file (error) or describe it
+    without them (drop), as `pianist play` would play it."""
 
     def run(self) -> None:
         from pianist.music import (
@@ -118,12 +123,20 @@ class Info:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             summary = _score_summary(self.song)  # a score is parsed once
-            song = summary.song if summary is not None else load_song(self.song)
+            song = (
+                summary.song
+                if summary is not None
+                else load_song(self.song, out_of_range=self.out_of_range)
+            )
             # What `play` plays by default: the missing hands and fingers estimated (from
             # the file again only for MIDI, whose tracks hint at the hands).
             is_midi = Path(self.song).suffix.lower() in (".mid", ".midi")
             source = self.song if is_midi else song
-            played = song if song.has_full_fingering else load_song(source, fingering="auto")
+            played = (
+                song
+                if song.has_full_fingering
+                else load_song(source, fingering="auto", out_of_range=self.out_of_range)
+            )
         problems = list(dict.fromkeys(" ".join(str(w.message).split()) for w in caught))
         problems += [p for p in check_playability(played) if not any(p in q for q in problems)]
         stats = song_stats(played)

@@ -9,7 +9,7 @@ from typing import Annotated, Any, Literal
 
 import tyro
 
-from pianist.cli.common import CliError
+from pianist.cli.common import CliError, check_seed
 from pianist.cli.common import out as _out
 
 
@@ -96,6 +96,8 @@ class Sweep:
             )
         if not (math.isfinite(self.noise) and self.noise >= 0):
             raise CliError(f"--noise must be a std >= 0, not {self.noise}")
+        for seed in self.seeds:
+            check_seed(seed, "--seeds")
         songs = songs_of(self.suite, self.songs, self.folder)
         physics: tuple[str | None, ...] = self.physics or (None,)
         cells = expand(self.task, songs, variants, physics, self.seeds)

@@ -8,7 +8,7 @@ from typing import Annotated, Literal
 
 import tyro
 
-from pianist.cli.common import CliError, SongArg
+from pianist.cli.common import CliError, SongArg, check_seed
 from pianist.cli.common import make_controller_from_spec as _make_controller
 from pianist.cli.common import out as _out
 
@@ -52,6 +52,7 @@ class View:
         from pianist.media.viewer import check_display
 
         check_display()  # before anything slow: the one thing a headless machine lacks
+        check_seed(self.seed)
         if self.seconds is not None and not (math.isfinite(self.seconds) and self.seconds > 0):
             raise CliError(f"--seconds must be > 0, not {self.seconds}")
         from pianist.media.viewer import view

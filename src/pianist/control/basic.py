@@ -83,8 +83,11 @@ class ReplayController(BaseController):
                 raise FileNotFoundError(f"actions file not found: {path}")
             try:
                 actions = np.load(path, allow_pickle=False)
-            except (ValueError, OSError, EOFError) as exc:
-                raise ValueError(f"{path} is not a readable .npy array ({exc})") from None
+            except (ValueError, OSError, EOFError):
+                raise ValueError(
+                    f"{path} is not a .npy array of actions (as `pianist play` writes to "
+                    "actions.npy)"
+                ) from None
             self.recorded_env_options = _recorded_env_options(path.with_name("metrics.json"))
         self.actions = np.asarray(actions, dtype=np.float32)
         if self.actions.ndim != 2:
@@ -100,6 +103,12 @@ class ReplayController(BaseController):
             raise ValueError(
                 f"replayed actions have {self.actions.shape[1]} dimensions, "
                 f"the environment expects {expected}"
+            )
+        steps = getattr(env.unwrapped, "num_steps", None)
+        if steps is not None and len(self.actions) != steps:
+            raise ValueError(
+                f"the replayed actions are {len(self.actions)} steps, this episode has {steps}: "
+                "replay them on the song (and lead-in) they were recorded with"
             )
         self._t = 0
 

@@ -12,6 +12,7 @@ import io
 import json
 import math
 import re
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -280,7 +281,7 @@ def read_episode(folder: str | Path) -> EpisodeRecord:
         metadata = json.loads((folder / META_FILE).read_text(encoding="utf-8"))
         with np.load(folder / ARRAYS_FILE, allow_pickle=False) as data:
             arrays = {name: data[name] for name in data.files}
-    except (OSError, ValueError, KeyError) as exc:
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as exc:
         raise ValueError(f"{folder} is not a recorded episode: {exc}") from None
     observations = {k.removeprefix("obs/"): v for k, v in arrays.items() if k.startswith("obs/")}
     terms_prefix = "info/reward_terms/"

@@ -131,11 +131,13 @@ def play(
             array, the reset's first; and each step's end flags, ``extra["terminations"]`` and
             ``extra["truncations"]``, (T,) bool (for demonstration datasets; off by default).
     Raises:
-        ValueError: a negative lead-in, or options the controller cannot play with.
+        ValueError: a negative lead-in or seed, or options the controller cannot play with.
         MusicError: the song cannot be loaded.
     """
     if not (math.isfinite(initial_buffer_s) and initial_buffer_s >= 0):
         raise ValueError(f"initial_buffer_s must be >= 0 seconds, not {initial_buffer_s}")
+    if seed is not None and seed < 0:
+        raise ValueError(f"the seed must be >= 0, not {seed}")
     if not isinstance(song, Song):
         song = load_song(song, fingering=fingering)
     options: dict[str, Any] = {"physics": physics, **(env_options or {})}

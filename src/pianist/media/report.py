@@ -29,6 +29,7 @@ import io
 import json
 import math
 import os
+import zipfile
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -232,7 +233,7 @@ def read_key_record(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:
     try:
         with np.load(path, allow_pickle=False) as archive:
             record = {name: archive[name] for name in archive.files}
-    except (OSError, ValueError) as exc:
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
         raise MediaError(f"{path}: not a readable key record ({exc})") from None
     needed = ("goal_keys", "active_keys", "control_timestep_s", "score_pitch", "score_onset_s")
     missing = [name for name in needed if name not in record]
