@@ -8,6 +8,9 @@ it (the benchmark's defaults plus the forearm height slide it declares, ``IKPlan
 - rtf: simulated seconds per wall-clock second, planner included (its reset too: the plans
   made and rehearsed anew for every repeat, as for a first play), median over ``--repeats``;
 - plan: the planner's share of the wall-clock time (its ``act`` calls against the whole loop);
+- plan s/min: the seconds the whole-piece plans take to make, per minute of music (every
+  candidate plan made and chosen by its playable key-frames, no episode rehearsed; the
+  model's posture samples, made once per model, excluded), median over ``--repeats``;
 - with ``--compare-tape``: the same cold start with the rehearsal's steps simulated again in
   the performance (``replay_tape=False``), timed in turns with the default, its median
   real-time factor and the speed-up the tape gives (the F1 must be the same: checked);
@@ -81,6 +84,26 @@ def lead_in_f1(song: str, physics: str, buffer_s: float) -> float:
     return run_episode(env, planner, seed=0).metrics()["song_f1"]
 
 
+def plan_seconds_per_minute(song: str, physics: str, repeats: int) -> float:
+    """Median seconds the whole-piece plans take to make (every candidate, chosen by the
+    key-frames each leaves playable, none rehearsed) per minute of the song's music."""
+    config = PlannerConfig(choose_plan="playable")
+    warm = IKPlanner(config)
+    env = make_env(song, warm, physics=physics)
+    env.reset(seed=0)
+    warm.reset(env, seed=0)  # the posture samples, cached per model, are not the plan's
+    times = []
+    for _ in range(repeats):
+        forget_plans()
+        planner = IKPlanner(config)
+        env.reset(seed=0)
+        start = time.perf_counter()
+        planner.reset(env, seed=0)
+        times.append(time.perf_counter() - start)
+    minutes = planner.goal.num_frames * env.config.control_timestep_s / 60.0
+    return float(np.median(times)) / minutes
+
+
 def _timed_episode(song: str, physics: str, config: PlannerConfig) -> tuple[dict, float, float]:
     """One cold-start episode (plans made and rehearsed anew): its metrics with the F1 lost
     by kind, its real-time factor and the planner's share of the wall time."""
@@ -145,7 +168,10 @@ def main() -> None:
     presets = args.presets.split(",")
 
     results: dict[str, dict[str, dict[str, float]]] = {}
-    header = f"{'song':34s} {'preset':9s} {'P':>6s} {'R':>6s} {'F1':>6s} {'rtf':>6s} {'plan':>5s}"
+    header = (
+        f"{'song':34s} {'preset':9s} {'P':>6s} {'R':>6s} {'F1':>6s} {'rtf':>6s} {'plan':>5s}"
+        f" {'plan s/min':>10s}"
+    )
     if args.compare_tape:
         header += f" {'rtf untaped':>11s} {'speed-up':>8s}"
     if args.noisy:
@@ -158,9 +184,11 @@ def main() -> None:
         results[song] = {}
         for physics in presets:
             r = bench_song(song, physics, args.repeats, args.compare_tape)
+            r["plan_seconds_per_minute"] = plan_seconds_per_minute(song, physics, args.repeats)
             line = (
                 f"{song:34s} {physics:9s} {r['precision']:6.3f} {r['recall']:6.3f} "
                 f"{r['f1']:6.3f} {r['realtime_factor']:6.1f} {r['planner_share']:5.2f}"
+                f" {r['plan_seconds_per_minute']:10.2f}"
             )
             if args.compare_tape:
                 line += f" {r['realtime_factor_no_tape']:11.1f} {r['tape_speedup']:8.2f}"
@@ -185,6 +213,11 @@ def main() -> None:
         print(f"mean F1 {p}: {np.mean([r[p]['f1'] for r in results.values()]):.3f}")
         rtf = [r[p]["realtime_factor"] for r in results.values()]
         print(f"median real-time factor {p}: {np.median(rtf):.1f} (slowest {min(rtf):.1f})")
+        per_minute = [r[p]["plan_seconds_per_minute"] for r in results.values()]
+        print(
+            f"whole-piece plans {p}: median {np.median(per_minute):.2f} s per minute of music "
+            f"(slowest {max(per_minute):.2f})"
+        )
         if args.compare_tape:
             untaped = np.median([r[p]["realtime_factor_no_tape"] for r in results.values()])
             speedup = np.median([r[p]["tape_speedup"] for r in results.values()])
