@@ -11,6 +11,7 @@ import gymnasium as gym
 import numpy as np
 
 from pianist.control.base import BaseController, Controller
+from pianist.env.handle import control_handle
 
 if TYPE_CHECKING:
     from pianist.music import Song
@@ -104,8 +105,8 @@ class ReplayController(BaseController):
                 f"replayed actions have {self.actions.shape[1]} dimensions, "
                 f"the environment expects {expected}"
             )
-        steps = getattr(env.unwrapped, "num_steps", None)
-        if steps is not None and len(self.actions) != steps:
+        steps = control_handle(env).num_steps
+        if len(self.actions) != steps:
             raise ValueError(
                 f"the replayed actions are {len(self.actions)} steps, this episode has {steps}: "
                 "replay them on the song (and lead-in) they were recorded with"
