@@ -154,3 +154,60 @@ def test_bad_input_is_refused_in_one_line(tmp_path, capsys):
     assert main(["play", SONG, "--controller", f"bc:{tmp_path}", "--out", str(tmp_path)]) == 1
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "no behaviour-cloning policy" in err
+
+
+def test_bc_train_refuses_what_would_lose_data_or_write_garbage(trained, tmp_path, capsys):
+    root, policy = trained
+    base = ["bc", "train", "--dataset", DATASET, "--root", str(root), "--steps", "20"]
+    # An --out holding anything but an earlier policy is refused, and left as it was.
+    other = tmp_path / "other"
+    other.mkdir()
+    (other / "notes.txt").write_text("keep me")
+    afile = tmp_path / "afile"
+    afile.write_text("keep me too")
+    for out, message in ((other, "holds other files (notes.txt)"), (afile, "is a file")):
+        assert main([*base, "--out", str(out)]) == 1
+        assert message in capsys.readouterr().err
+    assert (other / "notes.txt").read_text() == "keep me" and afile.read_text() == "keep me too"
+    assert main([*base, "--out", str(tmp_path.parent)]) == 1  # above the working folder
+    assert "working folder or above it" in capsys.readouterr().err
+    # A non-finite setting, a negative seed and an unknown DAgger song fail before training.
+    bad = [
+        (["--learning-rate", "inf"], "--learning-rate must be a finite number > 0"),
+        (["--input-noise", "inf"], "--input-noise must be a finite number >= 0"),
+        (["--seed", "-1"], "--seed must be >= 0"),
+        (["--dagger-rounds", "1", "--songs", "no-such-song"], "unknown song"),
+    ]
+    for extra, message in bad:
+        assert main([*base, *extra, "--out", str(tmp_path / "new")]) == 1
+        captured = capsys.readouterr()
+        assert message in captured.err and "steps" not in captured.out  # nothing trained
+        assert not (tmp_path / "new").exists()
+    # An earlier policy's folder is replaced whole.
+    again = tmp_path / "again"
+    assert main([*base, "--out", str(again)]) == 0
+    assert main([*base, "--out", str(again)]) == 0
+    assert sorted(p.name for p in again.iterdir()) == [bc.CONFIG_FILE, bc.WEIGHTS_FILE]
+    capsys.readouterr()
+
+
+def test_a_damaged_dataset_and_a_scene_dagger_cannot_label_are_one_line(trained, tmp_path):
+    import shutil
+
+    root, _ = trained
+    damaged_root = tmp_path / "datasets"
+    shutil.copytree(root, damaged_root)
+    (hdf5,) = (damaged_root / DATASET / "data").glob("*.hdf5")
+    data = bytearray(hdf5.read_bytes())
+    # The middle third: HDF5's own structures and chunks, past the superblock it opens with.
+    start, end = len(data) // 3, 2 * len(data) // 3
+    data[start:end] = np.random.default_rng(0).bytes(end - start)
+    hdf5.write_bytes(bytes(data))
+    with pytest.raises(ValueError, match="cannot be read"):
+        dataset = load_dataset(DATASET, str(damaged_root))  # a str root, as documented
+        bc.demonstrations(bc.minari_episodes(dataset))
+    # DAgger's teacher plays in the planner's scene: demonstrations from another are refused.
+    dataset = load_dataset(DATASET, root)
+    data = bc.demonstrations(bc.minari_episodes(dataset))
+    with pytest.raises(ValueError, match="build the dataset with the planner"):
+        bc.dagger(data, [SONG], 1, bc.BCConfig(steps=1), {"forearm_dofs": ("tx", "ty")})

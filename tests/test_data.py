@@ -119,6 +119,31 @@ def test_rerun_records_only_missing_episodes(tmp_path, monkeypatch):
     np.testing.assert_array_equal(dataset[0].actions, recorded_first.actions)
 
 
+def test_a_damaged_recorded_episode_is_named_with_what_to_do(tmp_path, monkeypatch):
+    from pianist.data.record import ARRAYS_FILE
+    from pianist.sweep.datasets import assemble_sweep
+
+    root = tmp_path / "datasets"
+    dataset_id = "pianist/damaged-v0"
+    record = build_module.record_episode
+
+    def second_fails(song, controller, seed, *args, **kwargs):
+        if seed == 1:
+            raise ValueError("stands for any failure")
+        return record(song, controller, seed, *args, **kwargs)
+
+    with monkeypatch.context() as patch:
+        patch.setattr(build_module, "record_episode", second_fails)
+        with pytest.raises(ValueError, match="1 of 2 episodes failed"):
+            build_dataset([SONG], episodes=2, dataset_id=dataset_id, root=root)
+    kept = work_dir(dataset_id, root) / "episodes" / f"{SONG}--0000"
+    (kept / ARRAYS_FILE).write_bytes(b"PK\x03\x04 cut short")  # a write cut off by a crash
+    with pytest.raises(ValueError, match=f"delete {kept} and build again"):
+        build_dataset([SONG], episodes=2, dataset_id=dataset_id, root=root)
+    with pytest.raises(FileNotFoundError, match="no sweep folder"):
+        assemble_sweep(tmp_path / "no-sweep", "pianist/x-v0", root)
+
+
 @pytest.mark.parametrize(
     ("args", "message"),
     [

@@ -383,9 +383,20 @@ def demonstrations(
 
 
 def minari_episodes(dataset: Any) -> Iterable[tuple[dict[str, np.ndarray], np.ndarray]]:
-    """(observations, actions) of every episode of a loaded Minari dataset."""
-    for episode in dataset.iterate_episodes():
-        yield dict(episode.observations), np.asarray(episode.actions)
+    """(observations, actions) of every episode of a loaded Minari dataset.
+
+    Raises:
+        ValueError: the dataset's file is damaged (HDF5 reports it as a RuntimeError or an
+            OSError while the episodes are read).
+    """
+    try:
+        for episode in dataset.iterate_episodes():
+            yield dict(episode.observations), np.asarray(episode.actions)
+    except (RuntimeError, OSError, KeyError) as exc:
+        name = getattr(getattr(dataset, "spec", None), "dataset_id", "the dataset")
+        raise ValueError(
+            f"{name}: its episodes cannot be read, the file is damaged ({exc})"
+        ) from None
 
 
 def train_bc(
@@ -533,6 +544,16 @@ def dagger(
         raise ValueError(f"DAgger rounds must be >= 0, not {rounds}")
     if rounds and not songs:
         raise ValueError("DAgger needs the songs to play")
+    if rounds:
+        from pianist.control.planner import ENV_OPTIONS
+
+        dofs = tuple((env_options or {}).get("forearm_dofs", ("tx", "ty")))
+        if dofs != ENV_OPTIONS["forearm_dofs"]:
+            raise ValueError(
+                f"DAgger's teacher, the planner, plays with forearm slides "
+                f"{'/'.join(ENV_OPTIONS['forearm_dofs'])}; these demonstrations were played "
+                f"with {'/'.join(dofs)}: build the dataset with the planner"
+            )
     policy, trainer = trained or train_bc(data, config, env_options, log)
     history: list[dict[str, Any]] = []
     for r in range(rounds):

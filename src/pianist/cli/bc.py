@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated
@@ -20,7 +21,8 @@ class BCTrain:
     dataset: str
     """The dataset id, e.g. pianist/open-etude-12-planner-v0 (pianist dataset build)."""
     out: Path
-    """The policy's folder (replaced whole if it exists)."""
+    """The policy's folder (an earlier policy there is replaced whole; a folder holding
+    anything else is refused)."""
     root: Annotated[
         Path | None, tyro.conf.arg(help_behavior_hint="(default: Minari's datasets folder)")
     ] = None
@@ -61,12 +63,19 @@ class BCTrain:
             raise CliError(f"--dagger-rounds must be >= 0, not {self.dagger_rounds}")
         if not self.hidden or min(self.hidden) < 1:
             raise CliError(f"--hidden needs widths >= 1, not {list(self.hidden)}")
-        if not self.input_noise >= 0:
-            raise CliError(f"--input-noise must be >= 0, not {self.input_noise}")
-        if not self.learning_rate > 0:
-            raise CliError(f"--learning-rate must be > 0, not {self.learning_rate}")
+        if not (math.isfinite(self.input_noise) and self.input_noise >= 0):
+            raise CliError(f"--input-noise must be a finite number >= 0, not {self.input_noise}")
+        if not (math.isfinite(self.learning_rate) and self.learning_rate > 0):
+            raise CliError(f"--learning-rate must be a finite number > 0, not {self.learning_rate}")
+        check_seed(self.seed)
         from pianist.agents import bc
         from pianist.data.minari_io import dataset_setup, load_dataset
+        from pianist.music import load_song
+
+        _check_policy_out(self.out, bc.CONFIG_FILE, bc.WEIGHTS_FILE)
+        if self.dagger_rounds:
+            for song in self.songs:  # before the cloning, not after it
+                load_song(song, fingering="auto")
 
         dataset = load_dataset(self.dataset, self.root)
         options, songs = dataset_setup(dataset)
@@ -88,6 +97,11 @@ class BCTrain:
         policy, history = bc.dagger(
             data, songs, self.dagger_rounds, config, options, log=out, workers=self.workers
         )
+        if not math.isfinite(policy.info["final_loss"]):
+            raise CliError(
+                f"training diverged (loss {policy.info['final_loss']}): nothing written; try a "
+                "lower --learning-rate"
+            )
         bc.save_policy(
             policy,
             self.out,
@@ -97,6 +111,25 @@ class BCTrain:
             f"wrote {self.out} (final loss {policy.info['final_loss']:.5f}); "
             f"play it with: pianist play SONG --controller bc:{self.out}"
         )
+
+
+def _check_policy_out(out: Path, *policy_files: str) -> None:
+    """Refuse an ``--out`` that is not a folder of the policy's own: a file, the working
+    folder or one above it, or a folder holding anything but an earlier policy's files."""
+    here = Path.cwd().resolve()
+    target = out.resolve()
+    if target == here or target in here.parents:
+        raise CliError(f"--out {out} is the working folder or above it; give a folder of its own")
+    if out.exists() and not out.is_dir():
+        raise CliError(f"--out {out} is a file, not a folder")
+    if out.is_dir():
+        others = sorted(p.name for p in out.iterdir() if p.name not in policy_files)
+        if others:
+            raise CliError(
+                f"--out {out} holds other files ({', '.join(others[:3])}"
+                f"{', ...' if len(others) > 3 else ''}); give a new folder or an earlier "
+                "policy's"
+            )
 
 
 @dataclass(frozen=True)

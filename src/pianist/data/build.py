@@ -231,8 +231,11 @@ def _claim_work_dir(work: Path, settings: BuildSettings) -> None:
     if path.is_file():
         found = json.loads(path.read_text(encoding="utf-8"))
         if found != wanted:
+            def shown(value: Any) -> str:
+                return "the default" if value is None else repr(value)
+
             changed = ", ".join(
-                f"{key} {found.get(key)!r} -> {value!r}"
+                f"{key} {shown(found.get(key))} -> {shown(value)}"
                 for key, value in wanted.items()
                 if found.get(key) != value
             )
@@ -311,7 +314,12 @@ def assemble(
     def records() -> Iterator[EpisodeRecord]:
         nonlocal steps
         for task in tasks:
-            record = read_episode(task.out_dir)
+            try:
+                record = read_episode(task.out_dir)
+            except ValueError as exc:
+                raise ValueError(
+                    f"{exc}; delete {task.out_dir} and build again to record that episode anew"
+                ) from None
             steps += record.num_steps
             f1.setdefault(record.metadata["song"], []).append(float(record.metadata["f1"]))
             songs[record.metadata["song"]] = record.metadata["provenance"]

@@ -189,21 +189,26 @@ def _episode_attrs(metadata: dict[str, Any]) -> dict[str, Any]:
     return attrs
 
 
-def load_dataset(dataset_id: str, root: Path | None = None) -> Any:
+def load_dataset(dataset_id: str, root: str | os.PathLike[str] | None = None) -> Any:
     """``minari.load_dataset(dataset_id)`` with the datasets under ``root`` (default Minari's).
 
     Raises:
-        ValueError: a malformed id.
+        ValueError: a malformed id, or a dataset whose files cannot be read.
         FileNotFoundError: no such dataset under the root.
     """
     import minari
 
     check_dataset_id(dataset_id)
-    root = root if root is not None else default_root()
+    root = Path(root) if root is not None else default_root()
     if not (dataset_dir(dataset_id, root) / "data").is_dir():
         raise FileNotFoundError(f"no dataset {dataset_id} in {root}")
     with datasets_root(root):
-        return minari.load_dataset(dataset_id)
+        try:
+            return minari.load_dataset(dataset_id)
+        except (OSError, RuntimeError, ValueError, KeyError) as exc:  # HDF5 or JSON damage
+            raise ValueError(
+                f"dataset {dataset_id} in {root} cannot be read ({' '.join(str(exc).split())})"
+            ) from None
 
 
 def dataset_summary(dataset: Any) -> dict[str, Any]:

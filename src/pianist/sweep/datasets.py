@@ -42,6 +42,8 @@ def assemble_sweep(out: str | Path, dataset_id: str, root: str | Path | None = N
     root = Path(root) if root is not None else default_root()
     if dataset_dir(dataset_id, root).exists():
         raise ValueError(f"dataset {dataset_id} already exists in {root}")
+    if not Path(out).is_dir():
+        raise FileNotFoundError(f"no sweep folder {out}")
     records = finished_dataset_cells(out)
     if not records:
         raise ValueError(f"{out} holds no finished cell of a dataset sweep")
