@@ -437,3 +437,31 @@ def test_dataset_sweep_takes_controllers_not_presets(tmp_path, capsys):
     args = ["sweep", "--task", "dataset", "--songs", SONG, "--noise", "-1", "--list"]
     assert main([*args, "--out", str(tmp_path / "s")]) == 1
     assert "--noise must be a std >= 0" in capsys.readouterr().err
+
+
+def test_an_address_where_nothing_listens_fails_in_seconds_before_anything_is_written(
+    tmp_path, capsys
+):
+    with socket.socket() as probe:  # a port that was free a moment ago: nothing listens
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    out = tmp_path / "sweep"
+    for address, message in ((f"127.0.0.1:{port}", "cannot reach"), ("nohost", "HOST:PORT")):
+        start = time.perf_counter()
+        assert main(["sweep", "--songs", SONG, "--address", address, "--out", str(out)]) == 1
+        err = capsys.readouterr().err
+        assert message in err and len(err.strip().splitlines()) == 1, err
+        assert time.perf_counter() - start < 10 and not out.exists()
+
+
+def test_a_sweep_with_failed_cells_exits_1_after_its_table(tmp_path, capsys, monkeypatch):
+    import pianist.sweep
+    from pianist.sweep.runner import SweepReport
+
+    rows = [{"status": "ok"}, {"status": "failed"}]
+    report = SweepReport(tmp_path, rows, skipped=0, ran=2)
+    monkeypatch.setattr(pianist.sweep, "run_sweep", lambda *args, **kwargs: report)
+    assert main(["sweep", "--songs", SONG, "--out", str(tmp_path)]) == 1
+    captured = capsys.readouterr()
+    assert "2 cells: 1 ok, 1 failed" in captured.out
+    assert "1 of 2 cells failed" in captured.err and len(captured.err.strip().splitlines()) == 1

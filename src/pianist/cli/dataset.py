@@ -32,7 +32,8 @@ class Build:
 
     songs: tuple[str, ...]
     """Suites (debug, robopianist-debug, open-etude-12, etude-12, repertoire-150), folders of
-    song files (MIDI, fingered automatically, or PIG), or songs by name or file."""
+    song files (MIDI, fingered automatically, PIG, or scores: MusicXML, Humdrum, ABC, MEI),
+    or songs by name or file."""
     controller: str = "planner"
     """planner, refine, mpc, random, zero, or policy:RUN_DIR (a trained policy)."""
     episodes: int = 1

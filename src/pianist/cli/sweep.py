@@ -9,6 +9,7 @@ from typing import Annotated, Any, Literal
 
 import tyro
 
+from pianist.agents.config import DEFAULT_PRESET
 from pianist.cli.common import CliError, check_seed
 from pianist.cli.common import out as _out
 
@@ -37,12 +38,13 @@ class Sweep:
     """Suites whose songs the grid holds: debug, robopianist-debug, open-etude-12, etude-12,
     repertoire-150."""
     songs: Annotated[tuple[str, ...], _OPTIONAL] = ()
-    """Songs by name or file (.mid, PIG .txt)."""
+    """Songs by name or file (MIDI, PIG .txt, or a score: MusicXML, Humdrum, ABC, MEI)."""
     folder: Annotated[tuple[Path, ...], _OPTIONAL] = ()
-    """Folders whose song files (.mid, .midi, PIG .txt) the grid holds."""
+    """Folders whose song files (MIDI, PIG .txt, MusicXML, Humdrum, ABC, MEI) the grid
+    holds."""
     controllers: Annotated[tuple[str, ...], _hint("(default: planner)")] = ()
     """play, dataset: controller specs, as play --controller takes them."""
-    presets: Annotated[tuple[str, ...], _hint("(default: residual-anchored)")] = ()
+    presets: Annotated[tuple[str, ...], _hint(f"(default: {DEFAULT_PRESET})")] = ()
     """train: training presets."""
     runs: Annotated[tuple[Path, ...], _hint("(required for eval)")] = ()
     """eval: training run folders to evaluate."""
@@ -134,6 +136,11 @@ class Sweep:
             f"{len(report.rows)} cells: {ok} ok, {report.failed} failed ({report.ran} run"
             f"{timing}, {report.skipped} skipped) -> {self.out / 'results.csv'}"
         )
+        if report.failed:  # the exit status tells a script what the table tells a person
+            raise CliError(
+                f"{report.failed} of {len(report.rows)} cells failed: their errors are in "
+                f"{self.out / 'results.csv'} (a rerun runs them again)"
+            )
 
     def _variants(self) -> list[str]:
         given: dict[str, list[str]] = {

@@ -25,6 +25,7 @@ import logging
 import math
 import os
 import shutil
+import socket
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -177,6 +178,8 @@ def run_sweep(
     if address is None and workers < cpus_per_cell:
         raise ValueError(f"{workers} worker CPUs cannot run a cell of {cpus_per_cell:g} CPUs")
     check_grid(cells)
+    if address is not None:
+        check_reachable(address)  # before anything is written, and in seconds, not minutes
     out.mkdir(parents=True, exist_ok=True)
     _check_folder(out, cells)
     write_json_atomic(
@@ -209,6 +212,28 @@ def run_sweep(
             f"{unseen[0]}): on a cluster, --out must be a folder every node sees at the same path"
         )
     return report
+
+
+def check_reachable(address: str, timeout_s: float = 5.0) -> None:
+    """Refuse a cluster address that no server answers at: Ray itself retries a closed port
+    for many minutes. ``auto`` (Ray finds the cluster) is left to Ray.
+
+    Raises:
+        ValueError: not ``HOST:PORT`` (or ``ray://HOST:PORT``), or nothing listens there.
+    """
+    if address == "auto":
+        return
+    host, _, port = address.removeprefix("ray://").rpartition(":")
+    if not host or not port.isdigit():
+        raise ValueError(f"a Ray cluster's address is HOST:PORT, not {address!r}")
+    try:
+        socket.create_connection((host, int(port)), timeout=timeout_s).close()
+    except OSError as exc:
+        reason = exc.strerror or type(exc).__name__
+        raise ValueError(
+            f"cannot reach a Ray cluster at {address}: {reason} (is `ray start --head` "
+            "running there, on that port?)"
+        ) from None
 
 
 _LOCAL_RAY_ENV = {"RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER": "0", "RAY_USAGE_STATS_ENABLED": "0"}
