@@ -634,3 +634,21 @@ def test_a_fork_is_independent_of_its_source():
     bigger.reset(seed=0)
     with pytest.raises(ValueError, match="another environment"):
         env.restore(bigger.snapshot())
+
+
+@pytest.mark.parametrize(
+    ("options", "message"),
+    [
+        ({"physics": 3}, "unknown physics preset"),
+        ({"forearm_dofs": "tx"}, "forearm_dofs is a sequence"),
+        ({"reduced_action_space": "no"}, "reduced_action_space must be True or False"),
+        ({"rewards": {"key_press": 1.0}}, "rewards must be a RewardWeights"),
+    ],
+)
+def test_make_env_refuses_options_of_the_wrong_kind(options, message) -> None:
+    import pianist
+
+    with pytest.raises(ValueError, match=message):
+        pianist.make_env("c-major-chords", **options)
+    # None is the default preset, as for pianist.eval.session.play.
+    assert pianist.make_env("c-major-chords", physics=None).config.scene.physics == "faithful"

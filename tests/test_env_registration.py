@@ -32,9 +32,33 @@ def test_every_song_is_registered() -> None:
 
 def test_register_envs_is_idempotent() -> None:
     before = {k for k in gym.registry if k.startswith("pianist/")}
+    originals = [f"RoboPianist-debug-{s}-v0" for s in list_songs("robopianist-debug")]
     ids = register_envs()
-    assert ids == [f"pianist/{s}-v0" for s in _builtin()]
+    assert ids == [f"pianist/{s}-v0" for s in _builtin()] + originals
     assert {k for k in gym.registry if k.startswith("pianist/")} == before
+
+
+def test_the_originals_ids_make_its_debug_songs() -> None:
+    # The ids the original registers for its debug songs, as its published runs name them.
+    assert gym.spec("RoboPianist-debug-CMajorScaleOneHand-v0").kwargs["song"] == (
+        "CMajorScaleOneHand"
+    )
+    env = gym.make("RoboPianist-debug-TwinkleTwinkleLittleStar-v0", physics="fast")
+    try:
+        assert (
+            env.unwrapped.song.name
+            == gym.make("pianist/TwinkleTwinkleLittleStar-v0", physics="fast").unwrapped.song.name
+        )
+        env.reset(seed=0)
+        env.step(np.zeros(env.action_space.shape, dtype=np.float32))
+    finally:
+        env.close()
+
+
+def test_a_step_before_reset_is_a_clear_error() -> None:
+    env = PianoEnv("c-major-chords", physics="fast")
+    with pytest.raises(RuntimeError, match=r"call reset\(\) before step\(\)"):
+        env.step(np.zeros(env.action_space.shape, dtype=np.float32))
 
 
 def test_make_and_step() -> None:

@@ -209,3 +209,13 @@ def test_load_song_unsupported_suffix(tmp_path: Path) -> None:
     path.write_bytes(b"RIFF")
     with pytest.raises(MusicError, match="unsupported"):
         load_song(path)
+
+
+@pytest.mark.parametrize("reference", ["x", "", "1#2"])
+def test_a_malformed_tune_reference_of_an_existing_book_says_so(tmp_path, reference) -> None:
+    book = tmp_path / "book.abc"
+    book.write_text("X:1\nT:One\nM:4/4\nL:1/4\nK:C\nCDEF|\n")
+    with pytest.raises(MusicError, match=rf"BOOK\.abc#X.*not {reference!r}"):
+        load_song(f"{book}#{reference}")
+    with pytest.raises(MidiFileError, match="file not found"):  # no such book: as before
+        load_song(f"{tmp_path / 'none.abc'}#{reference}")

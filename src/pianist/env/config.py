@@ -5,6 +5,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from pianist.sim import constants as C
 from pianist.sim.hands import HandOptions
 from pianist.sim.scene import SceneOptions
@@ -90,7 +92,7 @@ def make_config(
     *,
     lookahead: int = 10,
     hands: str = "both",
-    physics: str = "faithful",
+    physics: str | None = "faithful",
     reduced_action_space: bool = True,
     primitive_fingertip_collisions: bool = True,
     gravity_compensation: bool = True,
@@ -103,7 +105,27 @@ def make_config(
     rewards: RewardWeights | None = None,
     fingering_reward: str = "assigned",
 ) -> EnvConfig:
-    """Flat keyword options -> :class:`EnvConfig` (what ``pianist.make_env`` accepts)."""
+    """Flat keyword options -> :class:`EnvConfig` (what ``pianist.make_env`` accepts).
+
+    Raises:
+        ValueError: an option of the wrong kind (a flag that is not a bool, ``forearm_dofs``
+            given as one string, ``rewards`` that are not :class:`RewardWeights`) or value.
+    """
+    flags = {
+        "reduced_action_space": reduced_action_space,
+        "primitive_fingertip_collisions": primitive_fingertip_collisions,
+        "gravity_compensation": gravity_compensation,
+        "hand_collisions": hand_collisions,
+        "wrong_press_termination": wrong_press_termination,
+        "randomize_hand_positions": randomize_hand_positions,
+    }
+    for name, value in flags.items():
+        if not isinstance(value, bool | np.bool_):
+            raise ValueError(f"{name} must be True or False, not {value!r}")
+    if isinstance(forearm_dofs, str):
+        raise ValueError(f"forearm_dofs is a sequence such as ('tx', 'ty'), not {forearm_dofs!r}")
+    if rewards is not None and not isinstance(rewards, RewardWeights):
+        raise ValueError(f"rewards must be a RewardWeights, not {type(rewards).__name__}")
     return EnvConfig(
         lookahead=lookahead,
         control_timestep_s=control_timestep_s,
@@ -113,7 +135,7 @@ def make_config(
         fingering_reward=fingering_reward,
         scene=SceneOptions(
             hands=hands,  # type: ignore[arg-type]
-            physics=physics,
+            physics="faithful" if physics is None else physics,
             hand=HandOptions(
                 reduced_action_space=reduced_action_space,
                 primitive_fingertip_collisions=primitive_fingertip_collisions,

@@ -443,6 +443,8 @@ class PianoEnv(gym.Env):
     def apply_action(self, action: np.ndarray) -> None:
         """Validate ``action`` and write it to ``data.ctrl`` and the pedal (first half of step)."""
         self._leave_tape()
+        if not self._started:
+            raise RuntimeError("no episode has been started: call reset() before step()")
         if self._t >= self.goal.num_frames:
             raise RuntimeError("the episode is over: call reset()")
         action = np.asarray(action, dtype=np.float64)

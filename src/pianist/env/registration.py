@@ -1,5 +1,6 @@
 """Gymnasium ids: ``pianist/<song>-v0`` for every built-in song (debug, robopianist-debug and
-open-etude-12).
+open-etude-12), and the original's own ids for its debug songs
+(``RoboPianist-debug-<name>-v0``, where no other package has registered them).
 
 Registering only adds entries to Gymnasium's registry (no model is built until ``gym.make``).
 """
@@ -20,11 +21,19 @@ def env_id(song: str) -> str:
     return f"{NAMESPACE}/{song}-v{VERSION}"
 
 
+def original_env_id(song: str) -> str:
+    """The original RoboPianist's id of one of its debug songs, e.g.
+    ``RoboPianist-debug-TwinkleTwinkleLittleStar-v0``."""
+    return f"RoboPianist-debug-{song}-v{VERSION}"
+
+
 def register_envs() -> list[str]:
     """Register every built-in song (idempotent) and return the ids."""
     ids = []
-    for song in list_songs("debug") + list_songs(ORIGINAL_DEBUG_SUITE) + list_songs(OPEN_SUITE):
-        name = env_id(song)
+    songs = list_songs("debug") + list_songs(ORIGINAL_DEBUG_SUITE) + list_songs(OPEN_SUITE)
+    named = [(env_id(song), song) for song in songs]
+    named += [(original_env_id(song), song) for song in list_songs(ORIGINAL_DEBUG_SUITE)]
+    for name, song in named:
         if name not in gym.registry:
             gym.register(
                 id=name,

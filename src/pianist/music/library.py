@@ -371,6 +371,12 @@ def _load_song(
     path = Path(text)
     if not path.exists() and tune_reference(text) is not None:  # BOOK.abc#X
         return read_score(text, out_of_range=out_of_range, **reading)
+    book, hash_mark, reference = text.partition("#")
+    if not path.exists() and hash_mark and book.lower().endswith(".abc") and Path(book).is_file():
+        raise MusicError(
+            f"{text}: a tune of an ABC book is named BOOK.abc#X, X the number of its X: field, "
+            f"not {reference!r}"
+        )
     looks_like_path = bool(path.suffix) or "/" in text or os.sep in text
     if not path.exists():
         if looks_like_path or not isinstance(name_or_path, str):

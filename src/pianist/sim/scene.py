@@ -70,7 +70,9 @@ class SceneOptions:
     def __post_init__(self) -> None:
         if self.hands not in ("both", "right", "left"):
             raise ValueError(f"hands must be 'both', 'right' or 'left', not {self.hands!r}")
-        if isinstance(self.physics, str) and self.physics not in PHYSICS_PRESETS:
+        if not isinstance(self.physics, str | PhysicsPreset) or (
+            isinstance(self.physics, str) and self.physics not in PHYSICS_PRESETS
+        ):
             raise ValueError(
                 f"unknown physics preset {self.physics!r}; choose from {sorted(PHYSICS_PRESETS)}"
             )
