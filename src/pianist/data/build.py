@@ -224,6 +224,11 @@ def build_dataset(
     return report
 
 
+def _shown(setting: Any) -> str:
+    """A setting as a message names it (None: the controller's own, the default)."""
+    return "the default" if setting is None else repr(setting)
+
+
 def _claim_work_dir(work: Path, settings: BuildSettings) -> None:
     """Create the work folder, or check that the one there holds these settings' episodes."""
     path = work / SETTINGS_FILE
@@ -231,11 +236,8 @@ def _claim_work_dir(work: Path, settings: BuildSettings) -> None:
     if path.is_file():
         found = json.loads(path.read_text(encoding="utf-8"))
         if found != wanted:
-            def shown(value: Any) -> str:
-                return "the default" if value is None else repr(value)
-
             changed = ", ".join(
-                f"{key} {shown(found.get(key))} -> {shown(value)}"
+                f"{key} {_shown(found.get(key))} -> {_shown(value)}"
                 for key, value in wanted.items()
                 if found.get(key) != value
             )
