@@ -238,6 +238,17 @@ def test_report_cli_rewrites_one_page_and_compares_several(run_dir, tmp_path):
     for audio in parsed.all("audio"):
         assert (page.parent / audio["src"]).is_file(), audio["src"]
     assert len(parsed.all("audio")) == 2 * len(list(copy.glob("*.wav")))
+    # The page is written again in place; any other file there is not overwritten.
+    assert _cli("report", str(copy), str(old), "--out", str(page)).returncode == 0
+    metrics_text = (copy / "metrics.json").read_text()
+    for target in (copy / "metrics.json", tmp_path / "notes.py"):
+        target.write_text(metrics_text if target.suffix == ".json" else "print('keep')")
+        result = _cli("report", str(copy), "--out", str(target))
+        assert result.returncode == 1 and "is not a report page" in result.stderr
+    assert (copy / "metrics.json").read_text() == metrics_text
+    # The same folder twice (however spelt) is no comparison.
+    result = _cli("report", str(copy), f"{copy}/", "--out", str(page))
+    assert result.returncode == 1 and "is given twice" in result.stderr
 
 
 @pytest.mark.parametrize(

@@ -462,12 +462,29 @@ def write_report(
     out = Path(out)
     if out.is_dir():
         raise MediaError(f"{out} is a folder; give the report's file name (e.g. {out / REPORT})")
+    if out.exists() and not _is_report(out):
+        raise MediaError(f"{out} exists and is not a report page: give another file name")
+    seen = [Path(folder).resolve() for folder in folders]
+    twice = next((f for i, f in enumerate(folders) if seen[i] in seen[:i]), None)
+    if twice is not None:
+        raise MediaError(f"{twice} is given twice: compare different result folders")
     runs = [load_run(folder) for folder in folders]
     if shown_as is not None:
         runs = [replace(run, shown_as=Path(name)) for run, name in zip(runs, shown_as, strict=True)]
     page = render_report(runs, out.parent if str(out.parent) else Path("."), title)
     write_text_atomic(page, out)
     return out
+
+
+def _is_report(path: Path) -> bool:
+    """Whether the file at ``path`` is a page this module wrote (which a new one may replace):
+    an HTML page whose title starts "pianist: "."""
+    try:
+        with open(path, encoding="utf-8", errors="replace") as handle:
+            head = handle.read(4096)
+    except OSError:
+        return False
+    return head.startswith("<!DOCTYPE html>") and "<title>pianist: " in head
 
 
 def _run_section(run: RunReport, page_folder: Path, index: int, several: bool) -> str:
