@@ -66,6 +66,8 @@ def test_unlabelled_finger_takes_hand_from_channel(tmp_path: Path) -> None:
         ("0\t0\t1\tC4\t64\t80\t2\t1", "channel"),
         ("0\t0\t1\tC4\t64\t80\t0\t6", "finger"),
         ("0\t0\t1\tC4\t64\t80\t0\tx", "invalid literal"),
+        ("0\t0\t1e5\tC4\t64\t80\t0\t1", "refusing an absurd length"),  # 2M goal frames
+        ("0\t0\t1e300\tC4\t64\t80\t0\t1", "refusing an absurd length"),
     ],
 )
 def test_bad_rows_name_file_and_line(tmp_path: Path, row: str, why: str) -> None:

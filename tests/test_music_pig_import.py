@@ -181,6 +181,16 @@ def test_malformed_file(tmp_path: Path) -> None:
     )
     with pytest.raises(PigFormatError, match=r"004-1_fingering.txt:2"):
         import_pig(src, tmp_path / "out")
+    assert not list((tmp_path / "out").iterdir())  # a failed import writes nothing
+    # Over a good import, a failed one leaves it as it was (files and index alike).
+    good = import_pig(_dataset(tmp_path / "good"), tmp_path / "kept")
+    for song in (tmp_path / "kept").glob("*.txt"):  # marked: a rewrite would drop the mark
+        song.write_bytes(song.read_bytes() + b"// the earlier import\n")
+    before = {p.name: p.read_bytes() for p in (tmp_path / "kept").iterdir()}
+    with pytest.raises(PigFormatError):
+        import_pig(src, tmp_path / "kept")
+    assert {p.name: p.read_bytes() for p in (tmp_path / "kept").iterdir()} == before
+    assert len(good.pieces) == 4
     report = import_pig(src, tmp_path / "out", strict=False)
     assert len(report.pieces) == 4 and len(report.skipped) == 1
     assert "004-1_fingering.txt:2" in report.skipped[0]

@@ -22,6 +22,7 @@ from typing import Literal
 from pianist.files import write_text_atomic
 from pianist.music.errors import MusicError, PigFormatError, one_line
 from pianist.music.fileio import require_file
+from pianist.music.midi import MAX_DURATION_S
 from pianist.music.notes import LEFT, RIGHT, Note, Song
 from pianist.music.pitch import (
     HIGHEST_PITCH,
@@ -101,6 +102,11 @@ def read_pig(
             pitch, onset, offset, velocity, finger, hand = _parse_row(stripped.split())
         except ValueError as exc:
             raise PigFormatError(f"{path}:{number}: bad PIG row ({one_line(exc)})") from None
+        if offset > MAX_DURATION_S:  # as MIDI files and scores are: not hours of goal frames
+            raise PigFormatError(
+                f"{path}:{number}: a note ends at {offset:.0f} s, past "
+                f"{MAX_DURATION_S / 3600:g} hour; refusing an absurd length"
+            )
         if not LOWEST_PITCH <= pitch <= HIGHEST_PITCH:
             outside.append(pitch)
             continue

@@ -233,7 +233,8 @@ def import_pig(
             ``List.csv`` beside or inside it.
         dest_dir: where to write; default :func:`pig_data_dir`, where songs are looked up
             (elsewhere, set ``$PIANIST_PIG`` to it to use the songs). Any earlier import there
-            is replaced (index written last, atomically).
+            is replaced once every file has been read (the index written last, atomically):
+            an import that fails on a file leaves the earlier one as it was.
         strict: raise on the first unreadable fingering file (default); with False, skip it
             and list it in the report.
     Returns:
@@ -264,6 +265,7 @@ def import_pig(
         if (m := _FILE_RE.match(p.name))
     )
     pieces: list[PigPiece] = []
+    converted: list[tuple[str, Song]] = []  # written once every file has been read
     skipped: list[str] = []
     named: set[int] = set()
     used_names: set[str] = set()
@@ -289,7 +291,7 @@ def import_pig(
         if unfingered:  # PIG writes finger 0 for unlabelled notes; PIG files need a finger
             song = assign_fingering(song)
             problems.append(f"{unfingered} note(s) without a finger in the file, estimated")
-        write_pig(Song(song.notes, name=name or out_name), dest / out_name)
+        converted.append((out_name, Song(song.notes, name=name or out_name)))
         if name:
             problems += check_playability(song)
         if name:
@@ -309,6 +311,10 @@ def import_pig(
                 problems=problems,
             )
         )
+    # Only now, with every file read (a strict import that fails writes nothing), the songs,
+    # then the index that makes them visible.
+    for out_name, converted_song in converted:
+        write_pig(converted_song, dest / out_name)
     names = {p.name for p in pieces if p.name}
     index = {
         "format": 1,
