@@ -15,7 +15,7 @@ import json
 import os
 import shutil
 import tempfile
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Collection, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
@@ -139,6 +139,30 @@ def atomic_dir(
             shutil.rmtree(old, ignore_errors=True)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)  # gone already after a successful swap
+
+
+def check_replaceable_dir(
+    path: str | os.PathLike[str],
+    own: Collection[str],
+    *,
+    error: ErrorFactory = _default_error,
+    advice: str = "choose a new or empty folder",
+) -> None:
+    """Refuse a folder that :func:`atomic_dir` would replace and lose more than its own files
+    with: ``path`` a file, or a folder holding any name not in ``own`` (an earlier result's
+    files). A missing or empty ``path`` is fine.
+
+    Raises:
+        ``error(message)``: one line naming the problem, ending with ``advice``.
+    """
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise error(f"{path} is a file, not a folder")
+    if path.is_dir():
+        foreign = sorted(p.name for p in path.iterdir() if p.name not in own)
+        if foreign:
+            more = ", ..." if len(foreign) > 3 else ""
+            raise error(f"{path} holds other files ({', '.join(foreign[:3])}{more}); {advice}")
 
 
 def _umask() -> int:

@@ -10,6 +10,7 @@ from typing import Annotated
 import tyro
 
 from pianist.cli.common import CliError, check_seed, out, prepare_dir, require_jax
+from pianist.files import check_replaceable_dir
 
 
 @dataclass(frozen=True)
@@ -120,16 +121,12 @@ def _check_policy_out(out: Path, *policy_files: str) -> None:
     target = out.resolve()
     if target == here or target in here.parents:
         raise CliError(f"--out {out} is the working folder or above it; give a folder of its own")
-    if out.exists() and not out.is_dir():
-        raise CliError(f"--out {out} is a file, not a folder")
-    if out.is_dir():
-        others = sorted(p.name for p in out.iterdir() if p.name not in policy_files)
-        if others:
-            raise CliError(
-                f"--out {out} holds other files ({', '.join(others[:3])}"
-                f"{', ...' if len(others) > 3 else ''}); give a new folder or an earlier "
-                "policy's"
-            )
+    check_replaceable_dir(
+        out,
+        policy_files,
+        error=lambda message: CliError(f"--out {message}"),
+        advice="give a new folder or an earlier policy's",
+    )
 
 
 @dataclass(frozen=True)

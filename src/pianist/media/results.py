@@ -17,7 +17,12 @@ from typing import Any
 
 from pianist.env.handle import control_handle
 from pianist.eval.session import PlayResult
-from pianist.files import atomic_dir, save_npy_atomic, write_json_atomic
+from pianist.files import (
+    atomic_dir,
+    check_replaceable_dir,
+    save_npy_atomic,
+    write_json_atomic,
+)
 from pianist.media.errors import MediaError
 from pianist.media.report import KEY_RECORD, REPORT
 from pianist.music import write_midi
@@ -86,15 +91,7 @@ def check_output_folder(out: str | os.PathLike[str]) -> None:
         MediaError: one line naming the problem.
     """
     out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise MediaError(f"output directory {out} is a file")
-    if out.is_dir():
-        foreign = sorted(p.name for p in out.iterdir() if p.name not in RESULT_FILES)
-        if foreign:
-            raise MediaError(
-                f"output directory {out} holds other files ({', '.join(foreign[:3])}"
-                f"{', ...' if len(foreign) > 3 else ''}); choose a new or empty folder"
-            )
+    check_replaceable_dir(out, RESULT_FILES, error=lambda m: MediaError(f"output directory {m}"))
     ancestor = out if out.is_dir() else out.parent
     while not ancestor.exists():
         ancestor = ancestor.parent
@@ -117,7 +114,13 @@ def check_media_options(result_env: Any, media: MediaOptions) -> None:
     if media.video:
         from pianist.media.video import check_video_options
 
-        check_video_options(control_handle(result_env).model, media.camera, media.fps, media.size)
+        check_video_options(
+            control_handle(result_env).model,
+            media.camera,
+            media.fps,
+            media.size,
+            media.falling_notes,
+        )
 
 
 def write_result(

@@ -132,7 +132,7 @@ def render_episode(
     import mujoco
 
     model_in = env.model
-    height, width, fps = check_video_options(model_in, camera, fps, size)
+    height, width, fps = check_video_options(model_in, camera, fps, size, falling_notes)
     qpos = _check_qpos(episode, model_in.nq)
     times = frame_times(episode.num_steps, episode.control_timestep_s, fps)
 
@@ -193,13 +193,14 @@ def render_episode(
 
 
 def check_video_options(
-    model: Any, camera: str, fps: float, size: tuple[int, int]
+    model: Any, camera: str, fps: float, size: tuple[int, int], falling_notes: bool = False
 ) -> tuple[int, int, float]:
     """Validate video options before an episode is played, so a typo fails at once.
 
     Args:
         model: the ``mujoco.MjModel`` that will be rendered.
-        camera, fps, size: as in :func:`render_episode`.
+        camera, fps, size, falling_notes: as in :func:`render_episode` (the strip needs rows
+            of its own under a picture of at least 16).
     Returns:
         (height, width, fps) as ints and a float.
     Raises:
@@ -209,6 +210,11 @@ def check_video_options(
     if camera not in cameras:
         raise MediaError(f"unknown camera {camera!r}; choose from {', '.join(cameras)}")
     height, width = _check_size(size, model)
+    if falling_notes and height - strip_height(height) < 16:
+        raise MediaError(
+            f"a video {height} pixels high has no room for the falling-notes strip under its "
+            "picture: give a height of 32 or more"
+        )
     return height, width, _check_fps(fps)
 
 
