@@ -186,6 +186,14 @@ def test_make_mpc_presets_and_overrides():
         MPCOptions(horizon_s=0.205)
     with pytest.raises(ValueError, match="num_samples"):
         make_mpc(num_samples=0)
+    # A value out of range in a spec says why, and fields are checked together as given.
+    with pytest.raises(ValueError, match="num_samples must be >= 1, not 0"):
+        make_mpc("paper,num_samples=0")
+    with pytest.raises(ValueError, match="cannot parse 'bogus' .choose from zero, linear, cubic"):
+        make_mpc("interpolation=bogus")
+    both = make_mpc("paper,planning_timestep_s=0.025,horizon_s=0.125").options
+    assert (both.planning_timestep_s, both.horizon_s) == (0.025, 0.125)
+    assert make_mpc("seed=none").options.seed is None
 
 
 def test_rollouts_are_reproducible_with_the_fast_preset():

@@ -56,7 +56,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import asdict, dataclass, fields, replace
-from typing import Any
+from typing import Any, Literal, get_args, get_origin, get_type_hints
 
 import gymnasium as gym
 import mujoco
@@ -188,20 +188,25 @@ def _parse_spec(spec: str) -> tuple[MPCOptions, dict[str, Any]]:
 
 
 def _parse_value(key: str, value: str) -> Any:
-    """One field's value from its text, as ``--key value`` on the command line would give it."""
-    import contextlib
-    import io
-
-    import tyro
-
-    flag = "--" + key.replace("_", "-")
+    """One field's value from its text, by the field's type (int, float, a literal's names,
+    or None for an optional one). The values are checked together afterwards, when the
+    options are made (:meth:`MPCOptions.__post_init__`), so that its message says what is
+    wrong and fields that depend on each other (horizon and planning step) are checked as
+    given."""
+    kind = get_type_hints(MPCOptions)[key]
+    choices = get_args(kind)
     try:
-        # tyro reports a bad value on stderr and exits; the caller gets one line instead.
-        with contextlib.redirect_stderr(io.StringIO()), contextlib.redirect_stdout(io.StringIO()):
-            parsed = tyro.cli(MPCOptions, args=[flag, value], console_outputs=False)
-    except SystemExit:
-        raise ValueError(f"MPC option {key}: cannot parse {value!r}") from None
-    return getattr(parsed, key)
+        if get_origin(kind) is Literal:
+            if value not in choices:
+                raise ValueError(f"choose from {', '.join(map(str, choices))}")
+            return value
+        if type(None) in choices:  # an optional number
+            if value.lower() == "none":
+                return None
+            kind = next(c for c in choices if c is not type(None))
+        return kind(value)
+    except ValueError as exc:
+        raise ValueError(f"MPC option {key}: cannot parse {value!r} ({exc})") from None
 
 
 @dataclass
