@@ -228,6 +228,13 @@ def test_a_suite_not_imported_fails_before_its_table(tmp_path, capsys, monkeypat
     assert captured.out == "" and "import-pig" in captured.err
 
 
+def test_piping_into_head_ends_quietly():
+    command = f"{sys.executable} -m pianist.cli songs --suite all | head -1"
+    result = subprocess.run(command, shell=True, capture_output=True, text=True, timeout=120)
+    assert result.stdout.split()[:2] == ["name", "suite"]
+    assert result.stderr == ""  # no "Broken pipe" error once head has its line
+
+
 def test_eval_of_a_file_says_it_is_not_a_run(tmp_path, capsys):
     path = tmp_path / "notes.txt"
     path.write_text("x")
@@ -331,6 +338,7 @@ def test_play_writes_audio_pianoroll_and_video(tmp_path):
         (["--soundfont", "/no/such/font.sf2"], "soundfont not found"),
         (["--video", "--camera", "ceiling"], "unknown camera"),
         (["--video", "--size", "63", "64"], "even"),
+        (["--video", "--falling-notes", "--size", "16", "100"], "height of 32 or more"),
     ],
 )
 def test_bad_media_options_fail_before_playing(tmp_path, extra, message):

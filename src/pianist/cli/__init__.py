@@ -6,6 +6,7 @@ Every expected failure ends with one readable line on stderr and a non-zero exit
 
 from __future__ import annotations
 
+import os
 import sys
 import warnings
 from typing import Annotated, Any
@@ -50,6 +51,11 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         sys.stderr.write("pianist: interrupted\n")
         return 130
+    except BrokenPipeError:
+        # The reader of the output has gone (`pianist songs | head`): nothing to say, and
+        # the interpreter must not fail again flushing stdout at exit.
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 1
     except Exception as exc:  # noqa: BLE001 - turned into one line below, or re-raised
         message = _expected_error(exc)
         if message is None:

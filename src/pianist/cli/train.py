@@ -254,7 +254,11 @@ class Eval:
             raise CliError(f"{self.run_dir} is a file, not a training run's directory")
         out = self.out or self.run_dir / "eval"
         controller: Any
-        extra: dict[str, Any] = {"song": self.song, "run": str(self.run_dir)}
+        extra: dict[str, Any] = {
+            "song": self.song,
+            "run": str(self.run_dir),
+            "controller": f"policy:{self.run_dir}",  # as `play --controller` would name it
+        }
         if is_practice_run(self.run_dir):
             if self.physics is not None:
                 raise CliError("a practised piece plays in the physics it was practised in")
