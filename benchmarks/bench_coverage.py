@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 from dataclasses import replace
 
 import numpy as np
@@ -48,7 +49,9 @@ from pianist.control.hand_plan import HandPlanCosts
 from pianist.control.hand_split import HandReach
 from pianist.control.planner import IKPlanner, PlannerConfig
 from pianist.eval.session import make_env, play
-from pianist.music import list_songs, load_song
+from pianist.music import load_song
+
+from arguments import song_list  # isort: skip  (beside this script)
 
 #: WRJ2 (towards the little finger) and WRJ1 (flexion), rad: the hand's span thumb to little
 #: finger on white keys grows from 0.129 m to 0.160 m (an octave is 0.1645 m).
@@ -167,8 +170,10 @@ def main() -> None:
     parser.add_argument("--json", default=None, help="also write the results to this file")
     args = parser.parse_args()
 
-    names = args.songs.split(",") if args.songs else list_songs(args.suite)
+    names = song_list(parser, args.songs, args.suite)
     practised = {}
+    if args.practice and not os.path.isfile(args.practice):
+        parser.error(f"--practice {args.practice}: no such file")
     if args.practice:
         with open(args.practice) as f:
             practised = json.load(f)["songs"]

@@ -45,6 +45,8 @@ from pianist.eval import f1_lost_by_kind, run_episode
 from pianist.eval.session import make_env
 from pianist.music import list_songs
 
+from arguments import preset_list, song_list  # isort: skip  (beside this script)
+
 PRESETS = ("faithful", "fast")
 #: The F1 each kind of error costs, in the JSON per song and preset (pianist.eval.f1_lost).
 F1_LOST = tuple(
@@ -164,8 +166,10 @@ def main() -> None:
     )
     parser.add_argument("--json", default=None, help="also write the results to this file")
     args = parser.parse_args()
-    songs = list_songs(args.suite) if args.suite else args.songs.split(",")
-    presets = args.presets.split(",")
+    if args.repeats < 1:
+        parser.error(f"--repeats must be at least 1, not {args.repeats}")
+    songs = song_list(parser, None if args.suite else args.songs, args.suite)
+    presets = preset_list(parser, args.presets)
 
     results: dict[str, dict[str, dict[str, float]]] = {}
     header = (

@@ -24,7 +24,8 @@ import numpy as np
 from pianist.control.planner import IKPlanner
 from pianist.control.refine import Refiner, parse_refine_options
 from pianist.eval.session import play
-from pianist.music import list_songs
+
+from arguments import preset_list, song_list  # isort: skip  (beside this script)
 
 
 def _episode(song: str, controller, physics: str) -> dict:
@@ -47,8 +48,12 @@ def main() -> None:
     parser.add_argument("--refine", default="", help="Refiner options, e.g. candidates=16")
     parser.add_argument("--json", default=None, help="also write the results to this file")
     args = parser.parse_args()
-    songs = args.songs.split(",") if args.songs else list_songs(args.suite)
-    options = parse_refine_options(args.refine)
+    songs = song_list(parser, args.songs, args.suite)
+    preset_list(parser, args.presets)
+    try:
+        options = parse_refine_options(args.refine)
+    except ValueError as exc:
+        parser.error(" ".join(str(exc).split()))
     results: dict = {"options": dataclasses.asdict(options), "songs": {}}
     print(
         f"{'song':36s} {'preset':8s} {'F1':>6s} {'+ref':>6s} {'gain':>6s} {'R':>6s} "
