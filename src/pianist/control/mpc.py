@@ -167,7 +167,7 @@ def make_mpc(spec: str | MPCOptions | None = None, **overrides: Any) -> Predicti
 def _parse_spec(spec: str) -> tuple[MPCOptions, dict[str, Any]]:
     """``PRESET,name=value,...`` -> (the preset's options, {field: parsed value}).
 
-    Values are parsed by tyro, the parser of the command line, from the fields' types.
+    Values are parsed from the fields' types (:func:`_parse_value`), checked together later.
     """
     parts = [p.strip() for p in spec.split(",") if p.strip()]
     options = MPC_PRESETS["paper"]
