@@ -336,6 +336,7 @@ def test_play_writes_audio_pianoroll_and_video(tmp_path):
     ("extra", "message"),
     [
         (["--soundfont", "/no/such/font.sf2"], "soundfont not found"),
+        (["--soundfont", "/tmp"], "is a folder, not a .sf2/.sf3 file"),
         (["--video", "--camera", "ceiling"], "unknown camera"),
         (["--video", "--size", "63", "64"], "even"),
         (["--video", "--falling-notes", "--size", "16", "100"], "height of 32 or more"),
@@ -403,7 +404,11 @@ def test_info_says_where_the_hands_come_from(tmp_path, capsys):
     single = _midi(tmp_path / "single.mid", [("Piano", (60, 62, 64))])
     assert main(["info", single]) == 0
     out = capsys.readouterr().out
-    assert "hands:      right (estimated: the file names none)" in out
+    assert "hands:      right (estimated: the file does not tell the two hands apart)" in out
+    # One hand named, no other: not "names none" (the single group is placed by register).
+    alone = _midi(tmp_path / "alone.mid", [("Left Hand", (72, 76))])
+    assert main(["info", alone]) == 0
+    assert "(estimated: the file does not tell the two hands apart)" in capsys.readouterr().out
     assert main(["info", "c-major-chords"]) == 0
     assert "hands:      left, right\n" in capsys.readouterr().out
 

@@ -307,6 +307,15 @@ def test_corrupt_track_data(tmp_path: Path) -> None:
     assert "corrupt" in _error_message(path)
 
 
+def test_zero_ticks_per_beat_is_a_damaged_header_not_smpte(tmp_path: Path) -> None:
+    track = bytes([0x00, 0x90, 60, 64, 0x60, 0x80, 60, 0, 0x00, 0xFF, 0x2F, 0x00])
+    header = b"MThd" + struct.pack(">LHHH", 6, 0, 1, 0)
+    path = tmp_path / "tpb0.mid"
+    path.write_bytes(header + b"MTrk" + struct.pack(">L", len(track)) + track)
+    message = _error_message(path)
+    assert "0 ticks per beat" in message and "SMPTE" not in message
+
+
 def test_no_notes(tmp_path: Path) -> None:
     track = _track((0, mido.MetaMessage("set_tempo", tempo=500_000)), (480, _cc64(127)))
     path = _save(tmp_path / "silent.mid", track, midi_type=0)

@@ -154,7 +154,7 @@ class Info:
                 where = "the score's staves" if from_score else "the file"
                 hands += f" (partly estimated: {where} name a hand for some notes)"
             else:
-                hands += " (estimated: the file names none)"
+                hands += " (estimated: the file does not tell the two hands apart)"
         fingering = f"{100 * song.fingering_coverage:.0f}% of notes"
         if not song.has_full_fingering and song.notes:
             fingering += " in the file (play estimates the rest: --fingering auto)"

@@ -343,6 +343,8 @@ def _load_synth(
 ) -> Any:
     """A TinySoundFont synthesiser with ``program`` of bank 0 on channel 0."""
     path = default_soundfont() if soundfont is None else Path(soundfont)
+    if path.is_dir():
+        raise MediaError(f"soundfont {path} is a folder, not a .sf2/.sf3 file")
     if not path.is_file():
         raise MediaError(f"soundfont not found: {path}")
     try:

@@ -75,7 +75,9 @@ def _load(path: Path) -> mido.MidiFile:
         raise MidiFileError(f"{path}: corrupt MIDI file ({detail})") from exc
     if midi.type not in (0, 1):
         raise MidiFileError(f"{path}: MIDI format {midi.type} is not supported (only 0 and 1)")
-    if midi.ticks_per_beat <= 0:
+    if midi.ticks_per_beat == 0:
+        raise MidiFileError(f"{path}: corrupt MIDI file (its header gives 0 ticks per beat)")
+    if midi.ticks_per_beat < 0:
         raise MidiFileError(f"{path}: SMPTE time division is not supported (need ticks per beat)")
     return midi
 
