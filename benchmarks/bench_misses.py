@@ -11,7 +11,8 @@ uses for it. At every step, each key due then and not sounding is put in one cla
 
 The left-out key-frames in all, and per finger (thumb 0 to little finger 4, both hands
 together) the planned key-frames due and missed by class; for ``hovering`` and ``pressing``
-the median distance across the keys from the fingertip to the key. ``docs/planner.md``
+the median distance across the keys from the fingertip to the key.
+``docs/notes/2026-12-07-planner-plans.md``
 ("Misses traced to their cause") reads it.
 
 Run: ``python benchmarks/bench_misses.py [--suite open-etude-12] [--physics fast]

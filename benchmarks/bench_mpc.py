@@ -58,7 +58,6 @@ def run_one(song_name: str, seconds: float | None, controller_name: str, physics
         row["plan_rtf"] = metrics["mpc_realtime_factor"]
         row["ms_per_step"] = metrics["mpc_ms_per_step"]
         row["rollout_steps_per_s"] = metrics["mpc_rollout_steps_per_s"]
-    result.env.close()
     return row
 
 

@@ -22,7 +22,8 @@ import time
 import numpy as np
 
 from pianist.control.planner import IKPlanner
-from pianist.control.refine import Refiner, parse_refine_options
+from pianist.control.refine import Refiner
+from pianist.control.registry import parse_controller
 from pianist.eval.session import play
 
 from arguments import preset_list, song_list  # isort: skip  (beside this script)
@@ -51,7 +52,7 @@ def main() -> None:
     songs = song_list(parser, args.songs, args.suite)
     preset_list(parser, args.presets)
     try:
-        options = parse_refine_options(args.refine)
+        options = parse_controller(f"refine:{args.refine}" if args.refine else "refine")
     except ValueError as exc:
         parser.error(" ".join(str(exc).split()))
     results: dict = {"options": dataclasses.asdict(options), "songs": {}}

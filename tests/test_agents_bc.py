@@ -11,9 +11,9 @@ minari = pytest.importorskip("minari")
 
 from pianist.agents import bc  # noqa: E402
 from pianist.cli import main  # noqa: E402
-from pianist.cli.common import make_controller_from_spec  # noqa: E402
 from pianist.control import make_controller  # noqa: E402
 from pianist.control.planner import ENV_OPTIONS, IKPlanner  # noqa: E402
+from pianist.control.registry import build_controller  # noqa: E402
 from pianist.data.build import BuildSettings, build_dataset  # noqa: E402
 from pianist.data.minari_io import load_dataset  # noqa: E402
 from pianist.env.handle import control_handle  # noqa: E402
@@ -70,7 +70,7 @@ def test_features_are_every_entry_in_sorted_order_with_the_goal_cut():
 
 def test_a_tiny_dataset_trains_a_policy_that_plays_its_song(trained, capsys):
     root, out = trained
-    controller = make_controller_from_spec(f"bc:{out}")
+    controller = build_controller(f"bc:{out}")
     # It plays in the scene of the demonstrations (the planner's forearm slides).
     assert controller.env_options(None)["forearm_dofs"] == ENV_OPTIONS["forearm_dofs"]
     f1 = play(SONG, controller, seed=0).metrics["f1"]

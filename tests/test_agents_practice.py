@@ -17,11 +17,10 @@ from pianist.agents.practice import (
     save_practice,
     write_practice_config,
 )
-from pianist.agents.specs import controller_from_spec
 from pianist.cli import main
 from pianist.control.planner import IKPlanner, PlannerConfig
 from pianist.control.refine import RefineOptions
-from pianist.env.handle import control_handle
+from pianist.control.registry import build_controller
 from pianist.eval.session import play
 from pianist.music import goal_frames, load_song
 from pianist.music.transforms import window
@@ -107,7 +106,7 @@ def test_a_table_is_refused_for_another_piece(practised):
     planner = CorrectedPlanner(practised.table, fingerprint=practised.fingerprint)
     with pytest.raises(ValueError, match="another piece"):
         play(other, planner, physics="fast")
-    env_goal = control_handle(play(SONG, IKPlanner(), physics="fast").env).goal
+    env_goal = play(SONG, IKPlanner(), physics="fast").goal
     assert goal_fingerprint(env_goal) == practised.fingerprint
 
 
@@ -189,7 +188,7 @@ def test_train_practice_then_eval_and_play_it(tmp_path, capsys, monkeypatch):
     metrics = json.loads((run / "eval" / "metrics.json").read_text())
     assert metrics["f1"] == pytest.approx(best)
     assert metrics["preset"] == "practice" and metrics["physics"] == "fast"
-    assert isinstance(controller_from_spec(f"policy:{run}"), CorrectedPlanner)
+    assert isinstance(build_controller(f"policy:{run}"), CorrectedPlanner)
     # Resuming goes on from the last pass.
     assert main(["train", "--resume", str(run), "--passes", "2", "--no-progress"]) == 0
     log = [json.loads(line) for line in (run / "log.jsonl").read_text().splitlines()]

@@ -1,12 +1,15 @@
 """The refiner: the planner's actions improved by looking ahead on a fork of the environment."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
 from pianist.cli import main
 from pianist.control import make_controller
 from pianist.control.planner import IKPlanner
-from pianist.control.refine import RefineOptions, Refiner, parse_refine_options
+from pianist.control.refine import RefineOptions, Refiner
+from pianist.control.registry import parse_controller
 from pianist.eval.session import make_env, play
 from pianist.music import Song, load_song
 from pianist.music.notes import Note
@@ -119,12 +122,19 @@ def test_crossed_fingers_are_found_in_either_hand():
     assert refiner._crossed(crossed).size == 0
 
 
+def parse_refine_options(text: str) -> RefineOptions:
+    """The options of ``refine:TEXT`` (the spec's fields are the refiner's options)."""
+    spec = parse_controller(f"refine:{text}" if text else "refine")
+    assert isinstance(spec, RefineOptions)
+    return RefineOptions(**dataclasses.asdict(spec))
+
+
 def test_refine_options_parse_and_refuse():
     assert parse_refine_options("") == RefineOptions()
     assert parse_refine_options("candidates=16,sigma=0.2") == RefineOptions(16, sigma=0.2)
     with pytest.raises(ValueError, match="unknown refine option"):
         parse_refine_options("samples=3")
-    with pytest.raises(ValueError, match="needs a number"):
+    with pytest.raises(ValueError, match="needs a whole number"):
         parse_refine_options("candidates=many")
     assert parse_refine_options("keep_previous=false").keep_previous is False
     with pytest.raises(ValueError, match="needs true or false"):

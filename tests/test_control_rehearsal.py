@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from pianist.control.base import BaseController
 from pianist.control.planner import IKPlanner, PlannerConfig
 from pianist.control.planner.config import PLAN_CANDIDATES
 from pianist.control.planner.rehearsal import rehearse
@@ -12,7 +13,7 @@ from pianist.eval.session import make_env
 SONG = "c-major-scale-right"  # the frame-by-frame plan plays it best, the step-F1 plan worst
 
 
-class _Nudged:
+class _Nudged(BaseController):
     """A controller's actions, one joint nudged at one step (the performance leaves the
     rehearsed path there)."""
 

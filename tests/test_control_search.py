@@ -10,12 +10,13 @@ from pianist.cli import main
 from pianist.control import make_controller
 from pianist.control.planner import IKPlanner
 from pianist.control.refine import RefineOptions, Refiner
+from pianist.control.registry import parse_controller
 from pianist.control.search import (
     SearchOptions,
     SegmentSearch,
-    parse_search_spec,
     step_f1_loss,
 )
+from pianist.control.specs import SearchSpec
 from pianist.eval.metrics import precision_recall_f1
 from pianist.eval.session import play
 from pianist.music import load_song, write_midi
@@ -41,14 +42,20 @@ def test_step_loss_is_one_minus_the_metrics_f1():
     assert loss == pytest.approx(1.0 - f1)
 
 
+def parse_search_spec(text: str) -> SearchSpec:
+    spec = parse_controller(f"search:{text}" if text else "search")
+    assert isinstance(spec, SearchSpec)
+    return spec
+
+
 def test_spec_parsing_and_refused_options():
-    assert parse_search_spec("") == ("planner", SearchOptions())
-    base, options = parse_search_spec("refine,segment_steps=10,variants=plain+stiff-wrist")
-    assert base == "refine"
+    assert parse_search_spec("") == SearchSpec()
+    options = parse_search_spec("refine,segment_steps=10,variants=plain+stiff-wrist")
+    assert options.base == "refine"
     assert options.segment_steps == 10
     assert options.variants == ("plain", "stiff-wrist")
     for bad, words in [
-        ("mpc", "planner or refine"),
+        ("mpc", "needs one of planner, refine"),
         ("segment_steps=ten", "whole number"),
         ("horizon=3", "unknown search option"),
         ("variants=plain+louder", "unknown search variants"),

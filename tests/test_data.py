@@ -9,6 +9,7 @@ import pytest
 
 from pianist.cli import main
 from pianist.control import make_controller
+from pianist.control.base import BaseController
 from pianist.data import build as build_module
 from pianist.data.build import BuildSettings, build_dataset, resolve_songs, work_dir
 from pianist.data.record import read_episode, song_provenance
@@ -187,7 +188,7 @@ def test_folder_songs_and_their_provenance(tmp_path):
         resolve_songs([str(tmp_path)])
 
 
-class _AddsEntry:
+class _AddsEntry(BaseController):
     """A controller whose environment wrapper adds an observation entry in place, as a
     trained policy's task does (the recorder sits inside it and must not see the entry)."""
 
@@ -216,9 +217,9 @@ class _AddsEntry:
 
 
 def test_observations_are_the_environments_own_under_a_noisy_wrapped_controller():
-    from pianist.data.record import NoisyDemonstrator
+    from pianist.control import NoisyController
 
-    result = play(SONG, NoisyDemonstrator(_AddsEntry(), 0.01), seed=0, record_observations=True)
+    result = play(SONG, NoisyController(_AddsEntry(), 0.01), seed=0, record_observations=True)
     observations = result.episode.extra["observations"]
     assert "extra" not in observations and "piano_keys" in observations
     assert observations["piano_keys"].shape == (result.episode.num_steps + 1, 88)

@@ -7,6 +7,7 @@ import dataclasses
 import numpy as np
 import pytest
 
+from pianist.control.base import BaseController
 from pianist.control.planner import IKPlanner, PlannerConfig, forget_plans
 from pianist.env import PianoEnv
 from pianist.env.tape import StepTape
@@ -17,7 +18,7 @@ SONG = "c-major-scale-right"
 STATE_FIELDS = ("qpos", "qvel", "act", "ctrl", "qacc_warmstart", "sensordata", "history")
 
 
-class _Watch:
+class _Watch(BaseController):
     """The planner's actions (one joint nudged at ``nudge_at``), every observation it is
     given, and at step ``look_at`` the environment's state taken as ``look`` says: a
     ``snapshot``, a ``fork``, or a step taken the vector environment's way (``apply_action``,

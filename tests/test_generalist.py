@@ -54,9 +54,9 @@ def test_a_missing_generalist_is_one_line(monkeypatch, tmp_path, capsys):
 
 
 def test_the_generalist_spec_chooses_where_its_forearms_go():
-    from pianist.agents.specs import controller_from_spec
+    from pianist.control.registry import build_controller
 
-    assert controller_from_spec("generalist").forearm == "plan"
-    assert controller_from_spec("generalist:forearm=policy").forearm == "policy"
-    with pytest.raises(ValueError, match="unknown generalist option"):
-        controller_from_spec("generalist:forearm=sideways")
+    assert build_controller("generalist").forearm == "plan"
+    assert build_controller("generalist:forearm=policy").forearm == "policy"
+    with pytest.raises(ValueError, match="generalist option forearm needs one of plan, policy"):
+        build_controller("generalist:forearm=sideways")

@@ -7,6 +7,7 @@ import wave
 import numpy as np
 import pytest
 
+from pianist.control.base import BaseController
 from pianist.media import (
     MediaError,
     default_soundfont,
@@ -215,7 +216,7 @@ def test_episode_note_events_render() -> None:
     from pianist.env import PianoEnv
     from pianist.eval import run_episode
 
-    class Random:
+    class Random(BaseController):
         def reset(self, env, seed=None) -> None:
             self._rng = np.random.default_rng(seed)
             self._shape = env.action_space.shape

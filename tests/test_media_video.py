@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from pianist.control.base import BaseController
 from pianist.eval import Episode, run_episode
 from pianist.media import MediaError, frame_times, interpolate_qpos, key_colours, render_episode
 from pianist.media.camera import frame_points, project
@@ -36,7 +37,7 @@ FPS = 10
 SIZE = (120, 160)
 
 
-class _HoldStill:
+class _HoldStill(BaseController):
     """Every actuator mid-range, pedal up: a deterministic episode without pianist.control."""
 
     def reset(self, env, seed=None) -> None:
@@ -333,7 +334,7 @@ _STAGE_SCRIPT = textwrap.dedent(
     env = PianoEnv(song, physics="fast")
     ep = run_episode(env, RandomController(), seed=3)
     height, width = size = (240, 320)
-    model = _recoloured_copy(env, mujoco)
+    model = _recoloured_copy(env.scene, mujoco)
     data = mujoco.MjData(model)
     frame_episode(model, data, env.scene, ep, size)
     cam = model.camera("front").id

@@ -38,6 +38,7 @@ from typing import TYPE_CHECKING, Any
 import gymnasium as gym
 import numpy as np
 
+from pianist.control.base import BaseController
 from pianist.files import atomic_dir
 
 if TYPE_CHECKING:
@@ -419,7 +420,7 @@ def train_bc(
 # ----------------------------------------------------------------------------- playing
 
 
-class BCController:
+class BCController(BaseController):
     """A behaviour-cloning policy as a controller (``--controller bc:DIR``).
 
     Plays in the environment its demonstrations were played in (:meth:`env_options`);

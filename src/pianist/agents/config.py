@@ -333,9 +333,10 @@ PRESETS["residual-windows"] = dataclasses.replace(
 PRACTICE_PRESET = "practice"
 
 #: The preset ``pianist train`` and ``pianist sweep --task train`` use unless told: the best
-#: measured per wall-clock minute on real pieces (docs/training.md: practice took four real
-#: pieces from 0.739 to 0.829 mean F1 in 8 minutes; ``residual-anchored``, the best agent,
-#: moved K545 by 0.01 in 10). ``droq-paper``, the paper's recipe, needs millions of steps.
+#: measured per wall-clock minute on real pieces (docs/notes/2026-12-07-training-history.md:
+#: practice took four real pieces from 0.739 to 0.829 mean F1 in 8 minutes;
+#: ``residual-anchored``, the best agent, moved K545 by 0.01 in 10). ``droq-paper``, the
+#: paper's recipe, needs millions of steps.
 DEFAULT_PRESET = PRACTICE_PRESET
 
 

@@ -11,6 +11,7 @@ import numpy as np
 
 from pianist.agents.config import TrainConfig
 from pianist.agents.envs import AgentEnv, Featurizer, song_hands
+from pianist.control.base import BaseController
 
 _SQRT_2_OVER_PI = np.float32(np.sqrt(2.0 / np.pi))
 
@@ -68,7 +69,7 @@ class NumpyActor:
         return np.tanh(mean + np.exp(log_std) * noise)
 
 
-class PolicyController:
+class PolicyController(BaseController):
     """A trained policy as a controller: ``reset(env, seed)``, ``act(observation)``.
 
     The environment must be the one the policy was trained on: build it with
@@ -112,7 +113,7 @@ class PolicyController:
 
         return make_env(load_song(song, fingering="auto"), self)
 
-    def env_options(self, song: Any) -> dict[str, Any]:
+    def env_options(self, song: Any = None) -> dict[str, Any]:
         """The :class:`pianist.env.PianoEnv` options :meth:`make_env` uses for ``song``: the
         whole task it was trained on (physics, hands, lookahead, action space, lead-in), in
         the ``physics`` given at construction if any."""

@@ -391,7 +391,7 @@ def _plan_trial(song: Song, physics: str, plan: str) -> tuple[dict[str, float], 
 
     config = PlannerConfig(hand_planning=plan)  # type: ignore[arg-type]
     played = play(song, IKPlanner(config), physics=physics, seed=0)
-    goal = control_handle(played.env).goal
+    goal = played.goal
     steps, dims = played.episode.actions.shape
     metrics = {name: float(played.metrics[name]) for name in ("f1", "precision", "recall")}
     return metrics, steps, dims, goal_fingerprint(goal)

@@ -1,10 +1,10 @@
-"""What every subcommand shares: the one-line error, the song argument, controller specs."""
+"""What every subcommand shares: the one-line error, the song argument, the seed check."""
 
 from __future__ import annotations
 
 import sys
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated
 
 import tyro
 
@@ -22,14 +22,6 @@ def require_jax() -> None:
 
     if importlib.util.find_spec("jax") is None:
         raise CliError("training needs JAX: pip install 'pianist[rl]' (jax, flax, optax)")
-
-
-def make_controller_from_spec(spec: str) -> Any:
-    """A controller from the --controller spec (:func:`pianist.agents.specs.controller_from_spec`:
-    policy:RUN_DIR, bc:DIR, generalist, or what :func:`pianist.control.make_controller` takes)."""
-    from pianist.agents.specs import controller_from_spec
-
-    return controller_from_spec(spec)
 
 
 def check_seed(seed: int, flag: str = "--seed") -> None:

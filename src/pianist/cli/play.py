@@ -12,8 +12,14 @@ from typing import Annotated, Literal
 import tyro
 
 from pianist.cli.common import CliError, SongArg, check_seed
-from pianist.cli.common import make_controller_from_spec as _make_controller
 from pianist.cli.common import out as _out
+from pianist.control.registry import controller_help, parse_controller
+
+#: The help of --controller: every kind with its options, from the registry.
+CONTROLLER_HELP = (
+    "The controller, as KIND or KIND:OPTION=VALUE,... (a bare first item: a preset or, for "
+    "search, the controller searched over; KIND:PATH for a folder or file):\n" + controller_help()
+)
 
 
 @dataclass(frozen=True)
@@ -29,19 +35,9 @@ class Play:
     """A built-in song name, a MIDI file (.mid), a PIG fingering file (.txt) or a score
     (MusicXML .musicxml, .mxl, .xml; Humdrum .krn; ABC .abc; MEI .mei: hands from its
     staves, its finger numbers; needs music21)."""
-    controller: str = "planner"
-    """planner; refine (the planner, each action refined by looking ahead with the physics, or
-    e.g. refine:candidates=16,horizon_steps=6,sigma=0.15; ~5x slower than real time); search
-    (the planner, its execution settings chosen per half second of music by playing each ahead
-    with the physics; ~2-3x real time; search:refine over the refiner, ~1/10; or e.g.
-    search:segment_steps=10,variants=plain+stiff-wrist); mpc (the
-    paper's predictive sampling; mpc:tenth, or e.g.
-    mpc:paper,num_samples=20,sigma=0.1,horizon_s=0.3,num_knots=3,iterations=8); generalist
-    (the policy shipped with the package, for any song: the plan made at reset fingers it and
-    places the hands, the policy decides every finger; generalist:forearm=policy, its own
-    slide targets);
-    policy:RUN_DIR (a trained agent); bc:DIR (a behaviour-cloning policy); random; zero; or
-    replay:ACTIONS.npy."""
+    controller: Annotated[
+        str, tyro.conf.arg(help=CONTROLLER_HELP, metavar="KIND[:OPTION=VALUE,...]")
+    ] = "planner"
     refine: bool = False
     """Refine the planner's actions by looking ahead with the physics (the same as
     --controller refine; with --controller search, the search runs over the refiner)."""
@@ -104,47 +100,34 @@ class Play:
         if self.video and sys.platform.startswith("linux"):
             # Offscreen rendering without a display; must be set before mujoco is imported.
             os.environ.setdefault("MUJOCO_GL", "egl")
-        from pianist.eval.session import make_env, play
-        from pianist.media.results import (
-            MediaOptions,
-            check_media_options,
-            check_output_folder,
-            write_result,
-        )
+        from pianist.control.specs import refined
+        from pianist.media.results import MediaOptions, play_to_folder
         from pianist.music import load_song
 
         # Everything that can be checked before the (long) episode is checked first.
         check_seed(self.seed)
         if not (math.isfinite(self.initial_buffer_s) and self.initial_buffer_s >= 0):
             raise CliError(f"--initial-buffer-s must be >= 0 seconds, not {self.initial_buffer_s}")
-        if self.controller.startswith("policy:") and self.initial_buffer_s:
+        spec = parse_controller(self.controller)
+        if spec.kind == "policy" and self.initial_buffer_s:
             raise CliError(
                 "--initial-buffer-s does not apply to a trained policy, which plays the task it "
                 "was trained on"
             )
-        spec = self.controller
         if self.refine:
-            if spec == "search" or spec.startswith("search:"):
-                spec = "search:refine," + spec.partition(":")[2]
-            elif spec not in ("planner", "refine") and not spec.startswith("refine:"):
-                raise CliError(f"--refine refines the planner, not --controller {spec}")
-            else:
-                spec = "refine" if spec == "planner" else spec
+            spec = refined(spec)
         song = load_song(
             self.song,
             out_of_range=self.out_of_range,
             fingering=self.fingering,
             as_written=self.as_written,
         )
-        planner = spec == "planner" or spec.split(":")[0] in ("refine", "search")
-        if planner and song.fingering_coverage < 1.0:
+        if spec.needs_fingering and song.fingering_coverage < 1.0:
             missing = sum(n.finger is None for n in song.notes)
             raise CliError(
                 f"{self.song}: {missing} of {song.num_notes} notes have no fingering; the "
-                "planner needs a finger for every note (use --fingering auto)"
+                f"{spec.kind} controller needs a finger for every note (use --fingering auto)"
             )
-        controller = _make_controller(spec)
-        check_output_folder(self.out)
         media = MediaOptions(
             audio=self.audio,
             video=self.video,
@@ -157,13 +140,17 @@ class Play:
             progress=sys.stderr.isatty(),
             report=self.report,
         )
-        if self.video:  # the cameras are the scene's: build it once to check
-            check_media_options(make_env(song, controller, physics=self.physics), media)
-        else:
-            check_media_options(None, media)
-        result = play(
+        result = play_to_folder(
             song,
-            controller,
+            spec.build(),
+            self.out,
+            media,
+            title=f"{self.song} ({spec}, " + "{physics} physics)",
+            extra_metrics={
+                "song": self.song,
+                "controller": str(spec),
+                "as_written": self.as_written,
+            },
             physics=self.physics,
             fingering=self.fingering,
             initial_buffer_s=self.initial_buffer_s,
@@ -171,14 +158,6 @@ class Play:
             progress=sys.stderr.isatty(),
         )
         metrics = result.metrics
-        title = f"{self.song} ({spec}, {metrics['physics']} physics)"
-        write_result(
-            result,
-            self.out,
-            media,
-            title=title,
-            extra_metrics={"song": self.song, "controller": spec, "as_written": self.as_written},
-        )
         song_f1 = f"  song F1 {metrics['song_f1']:.3f}" if "song_f1" in metrics else ""
         ceiling, planned = metrics.get("reach_ceiling_f1"), metrics.get("plan_f1")
         ceiling_f1 = f" (at most {ceiling:.3f} with these hands)" if ceiling is not None else ""

@@ -244,39 +244,34 @@ class Eval:
     was trained in."""
 
     def run(self) -> None:
-        from pianist.agents import PolicyController
-        from pianist.agents.practice import CorrectedPlanner, is_practice_run
-        from pianist.eval.session import play
-        from pianist.media.results import MediaOptions, check_output_folder, write_result
+        from pianist.agents.specs import load_run
+        from pianist.media.results import MediaOptions, play_to_folder
 
         check_seed(self.seed)
         if self.run_dir.exists() and not self.run_dir.is_dir():
             raise CliError(f"{self.run_dir} is a file, not a training run's directory")
         out = self.out or self.run_dir / "eval"
-        controller: Any
+        controller, described = load_run(self.run_dir, physics=self.physics)
         extra: dict[str, Any] = {
             "song": self.song,
             "run": str(self.run_dir),
             "controller": f"policy:{self.run_dir}",  # as `play --controller` would name it
+            **described,
         }
-        if is_practice_run(self.run_dir):
-            if self.physics is not None:
-                raise CliError("a practised piece plays in the physics it was practised in")
-            controller = CorrectedPlanner.load(self.run_dir)
-            extra.update(preset="practice", trained_physics=controller.physics)
-            step = "practised"
-        else:
-            controller = PolicyController(self.run_dir, physics=self.physics)
-            extra.update(
-                checkpoint_step=controller.step,
-                preset=controller.config.preset,
-                trained_physics=controller.config.task.physics,
-            )
-            step = f"policy at step {controller.step}"
-        check_output_folder(out)
-        result = play(self.song, controller, seed=self.seed)
+        step = (
+            "practised"
+            if described["preset"] == "practice"
+            else f"policy at step {described['checkpoint_step']}"
+        )
+        result = play_to_folder(
+            self.song,
+            controller,
+            out,
+            MediaOptions(audio=False),
+            extra_metrics=extra,
+            seed=self.seed,
+        )
         metrics = result.metrics
-        write_result(result, out, MediaOptions(audio=False), extra_metrics=extra)
         _out(
             f"{self.song}: precision {metrics['precision']:.3f}  recall {metrics['recall']:.3f}  "
             f"F1 {metrics['f1']:.3f}  sustain F1 {metrics['sustain_f1']:.3f}  "

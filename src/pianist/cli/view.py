@@ -9,8 +9,8 @@ from typing import Annotated, Literal
 import tyro
 
 from pianist.cli.common import CliError, SongArg, check_seed
-from pianist.cli.common import make_controller_from_spec as _make_controller
 from pianist.cli.common import out as _out
+from pianist.control.registry import build_controller
 
 
 @dataclass(frozen=True)
@@ -67,7 +67,7 @@ class View:
         )
         if self.seconds is not None and self.seconds < song.duration_s:
             song = window(song, 0.0, self.seconds)
-        controller = _make_controller(self.controller)
+        controller = build_controller(self.controller)
         result, stats = view(
             song,
             controller,

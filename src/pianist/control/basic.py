@@ -53,10 +53,20 @@ class NoisyController(BaseController):
             raise ValueError(f"noise std must be >= 0, not {sigma}")
         self.controller, self.sigma = controller, sigma
 
-    def env_options(self, song: Song) -> dict[str, Any]:
-        """The wrapped controller's."""
-        options = getattr(self.controller, "env_options", None)
-        return options(song) if options is not None else {}
+    # What the wrapped controller declares is declared for it (its plan and settings are
+    # not: the noise changes what was played).
+
+    def env_options(self, song: Song | None = None) -> dict[str, Any]:
+        return self.controller.env_options(song)
+
+    def wrap_env(self, env: gym.Env) -> gym.Env:
+        return self.controller.wrap_env(env)
+
+    def stats(self) -> dict[str, float]:
+        return dict(self.controller.stats())
+
+    def close(self) -> None:
+        self.controller.close()
 
     def reset(self, env: gym.Env, seed: int | None = None) -> None:
         self._rng = np.random.default_rng([0 if seed is None else seed, 11])
@@ -94,7 +104,7 @@ class ReplayController(BaseController):
         if self.actions.ndim != 2:
             raise ValueError(f"replayed actions must be a (T, A) array, not {self.actions.shape}")
 
-    def env_options(self, song: Song) -> dict[str, Any]:
+    def env_options(self, song: Song | None = None) -> dict[str, Any]:
         """The environment the actions were recorded in (empty when not known)."""
         return dict(self.recorded_env_options)
 
@@ -143,39 +153,9 @@ def _recorded_env_options(metrics_path: Path) -> dict[str, Any]:
 
 
 def make_controller(spec: str, **kwargs: Any) -> Controller:
-    """A controller from its name: ``planner``, ``refine[:FIELD=VALUE,...]`` (the planner
-    refined by looking ahead, :mod:`pianist.control.refine`), ``search[:refine,FIELD=VALUE,...]``
-    (the planner or the refiner, its execution settings chosen per segment,
-    :mod:`pianist.control.search`), ``mpc[:SPEC]``, ``random``, ``zero`` or
-    ``replay:PATH.npy``."""
-    if spec == "planner":
-        from pianist.control.planner import IKPlanner
+    """The controller a spec string names (:func:`pianist.control.registry.build_controller`:
+    ``planner``, ``refine[:FIELD=VALUE,...]``, ``search[:refine,FIELD=VALUE,...]``,
+    ``mpc[:PRESET,...]``, ``random``, ``zero``, ``replay:PATH.npy`` and the learned kinds)."""
+    from pianist.control.registry import build_controller
 
-        return IKPlanner()
-    if spec == "refine" or spec.startswith("refine:"):
-        from pianist.control.refine import Refiner, parse_refine_options
-
-        return Refiner(options=parse_refine_options(spec.partition(":")[2]))
-    if spec == "search" or spec.startswith("search:"):
-        from pianist.control.refine import Refiner
-        from pianist.control.search import SegmentSearch, parse_search_spec
-
-        base, options = parse_search_spec(spec.partition(":")[2])
-        return SegmentSearch(Refiner() if base == "refine" else None, options)
-    if spec == "mpc" or spec.startswith("mpc:"):
-        from pianist.control.mpc import make_mpc
-
-        # mpc, mpc:PRESET or mpc:PRESET,field=value,... (see pianist.control.mpc.make_mpc)
-        return make_mpc(spec.partition(":")[2] or None)
-    if spec == "random":
-        return RandomController()
-    if spec == "zero":
-        return ZeroController()
-    if spec.startswith("replay:"):
-        return ReplayController(spec.removeprefix("replay:"))
-    raise ValueError(
-        f"unknown controller {spec!r}; use planner, refine[:FIELD=VALUE,...], "
-        "search[:refine,FIELD=VALUE,...], "
-        "mpc[:PRESET,...], random, zero or "
-        "replay:ACTIONS.npy"
-    )
+    return build_controller(spec)

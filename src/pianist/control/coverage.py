@@ -18,7 +18,8 @@ finger's sampled reach across the keyboard, white and black keys apart
   planned position, and playable; and the plan's own F1 (:func:`plan_f1`): the score of a
   player that sounds exactly the playable key-frames, what the plan leaves to execution.
 
-``benchmarks/bench_coverage.py`` prints both per piece; ``docs/planner.md`` reads them.
+``benchmarks/bench_coverage.py`` prints both per piece;
+``docs/notes/2026-12-07-planner-plans.md`` reads them.
 Arrays in, arrays out; lengths in m.
 """
 

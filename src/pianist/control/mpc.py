@@ -53,10 +53,9 @@ act from observations alone).
 
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import asdict, dataclass, fields, replace
-from typing import Any, Literal, get_args, get_origin, get_type_hints
+from typing import Any
 
 import gymnasium as gym
 import mujoco
@@ -64,7 +63,9 @@ import numpy as np
 from mujoco import rollout as mj_rollout
 
 from pianist.control.base import BaseController
-from pianist.control.spline import INTERPOLATIONS, Interpolation, interpolation_weights, knot_times
+from pianist.control.options import MPCOptions
+from pianist.control.registry import parse_controller
+from pianist.control.spline import interpolation_weights, knot_times
 from pianist.env.handle import ControlHandle, control_handle
 from pianist.sim import constants as C
 from pianist.sim.scene import build_spec
@@ -73,140 +74,26 @@ _FULLPHYSICS = int(mujoco.mjtState.mjSTATE_FULLPHYSICS)
 _FINGERS = 10
 
 
-@dataclass(frozen=True)
-class MPCOptions:
-    """Settings of :class:`PredictiveSampling`; the defaults are the paper's (preset ``paper``)."""
-
-    num_samples: int = 10
-    """Candidates per planning iteration, the kept nominal included (paper: N = 10)."""
-    sigma: float = 0.05
-    """Standard deviation of the knot noise, in normalised action units (half a range = 1)."""
-    horizon_s: float = 0.2
-    num_knots: int = 2
-    """Spline knots over the horizon (the paper's "spline dimension")."""
-    interpolation: Interpolation = "cubic"
-    planning_timestep_s: float = 0.01
-    """Timestep of the rollouts' physics (MJPC's agent_timestep); the env keeps its own."""
-    iterations: int = 5
-    """Planning iterations per control step."""
-    key_weight: float = 1.0
-    finger_weight: float = 1.0
-    threads: int = 2
-    """Rollout threads (1 = the calling thread)."""
-    seed: int | None = None
-    """Seed of the sampling noise; None uses the seed given to ``reset``."""
-
-    def __post_init__(self) -> None:
-        if self.num_samples < 1:
-            raise ValueError(f"num_samples must be >= 1, not {self.num_samples}")
-        if not (self.sigma >= 0 and math.isfinite(self.sigma)):
-            raise ValueError(f"sigma must be a finite number >= 0, not {self.sigma}")
-        if self.num_knots < 1:
-            raise ValueError(f"num_knots must be >= 1, not {self.num_knots}")
-        if self.interpolation not in INTERPOLATIONS:
-            raise ValueError(
-                f"unknown interpolation {self.interpolation!r}; use one of {INTERPOLATIONS}"
-            )
-        if not self.planning_timestep_s > 0:
-            raise ValueError(f"planning_timestep_s must be > 0, not {self.planning_timestep_s}")
-        steps = self.horizon_s / self.planning_timestep_s
-        if not self.horizon_s > 0 or abs(steps - round(steps)) > 1e-6 or round(steps) < 1:
-            raise ValueError(
-                f"horizon_s {self.horizon_s} must be a positive multiple of "
-                f"planning_timestep_s {self.planning_timestep_s}"
-            )
-        if self.iterations < 1:
-            raise ValueError(f"iterations must be >= 1, not {self.iterations}")
-        if self.threads < 1:
-            raise ValueError(f"threads must be >= 1, not {self.threads}")
-        if self.key_weight < 0 or self.finger_weight < 0:
-            raise ValueError("cost weights must be >= 0")
-
-    @property
-    def horizon_steps(self) -> int:
-        """Rollout steps over the horizon."""
-        return round(self.horizon_s / self.planning_timestep_s)
-
-
-MPC_PRESETS: dict[str, MPCOptions] = {
-    # Appendix "Baselines": N = 10, sigma 0.05, 2 knots, 0.2 s horizon, 0.01 s planning step.
-    "paper": MPCOptions(),
-    # What 1/10 real time (the paper's budget) buys on this project's 2-core machine: 2.5x the
-    # paper's rollouts per control step (25 x 21 x 5 = 2625 rollout steps of 0.01 s, ~0.5 s at
-    # the ~5.4k rollout steps/s measured with 2 threads on a quiet machine), spent on more
-    # samples, and a wider search. benchmarks/bench_mpc.py --seconds 4 (first 4 s of
-    # twinkle-twinkle, c-major-scale-right, c-major-chords, seed 0): mean F1 0.73 against 0.39
-    # for the paper preset.
-    "tenth": MPCOptions(num_samples=25, sigma=0.2),
-}
-
-
 def make_mpc(spec: str | MPCOptions | None = None, **overrides: Any) -> PredictiveSampling:
     """A predictive-sampling controller from a preset name, a spec string or options.
 
     Args:
-        spec: None (the ``paper`` preset), an :class:`MPCOptions`, a preset name, or a preset
-            name followed by comma-separated overrides, e.g.
-            ``"paper,num_samples=20,iterations=10"`` (also accepted without the preset).
+        spec: None (the ``paper`` preset), an :class:`MPCOptions`, or the part of a controller
+            string after ``mpc:`` (:mod:`pianist.control.registry`), e.g. ``"tenth"`` or
+            ``"paper,num_samples=20,iterations=10"``.
         overrides: further :class:`MPCOptions` fields, applied last.
     Raises:
         ValueError: unknown preset or field, or a value that does not parse or is out of range.
     """
-    if isinstance(spec, MPCOptions):
-        options = spec
-    else:
-        options, parsed = _parse_spec(spec or "paper")
-        overrides = {**parsed, **overrides}
+    if not isinstance(spec, MPCOptions):
+        parsed = parse_controller(f"mpc:{spec or 'paper'}")
+        spec = MPCOptions(**{f.name: getattr(parsed, f.name) for f in fields(MPCOptions)})
+    options = spec
     names = {f.name for f in fields(MPCOptions)}
     unknown = sorted(set(overrides) - names)
     if unknown:
         raise ValueError(f"unknown MPC option(s) {unknown}; choose from {sorted(names)}")
     return PredictiveSampling(replace(options, **overrides))
-
-
-def _parse_spec(spec: str) -> tuple[MPCOptions, dict[str, Any]]:
-    """``PRESET,name=value,...`` -> (the preset's options, {field: parsed value}).
-
-    Values are parsed from the fields' types (:func:`_parse_value`), checked together later.
-    """
-    parts = [p.strip() for p in spec.split(",") if p.strip()]
-    options = MPC_PRESETS["paper"]
-    if parts and "=" not in parts[0]:
-        name = parts.pop(0)
-        if name not in MPC_PRESETS:
-            raise ValueError(f"unknown MPC preset {name!r}; choose from {sorted(MPC_PRESETS)}")
-        options = MPC_PRESETS[name]
-    names = sorted(f.name for f in fields(MPCOptions))
-    parsed: dict[str, Any] = {}
-    for part in parts:
-        key, sep, value = part.partition("=")
-        key = key.strip().replace("-", "_")
-        if not sep or key not in names:
-            raise ValueError(f"bad MPC option {part!r}; expected NAME=VALUE with NAME in {names}")
-        parsed[key] = _parse_value(key, value.strip())
-    return options, parsed
-
-
-def _parse_value(key: str, value: str) -> Any:
-    """One field's value from its text, by the field's type (int, float, a literal's names,
-    or None for an optional one). The values are checked together afterwards, when the
-    options are made (:meth:`MPCOptions.__post_init__`), so that its message says what is
-    wrong and fields that depend on each other (horizon and planning step) are checked as
-    given."""
-    kind = get_type_hints(MPCOptions)[key]
-    choices = get_args(kind)
-    try:
-        if get_origin(kind) is Literal:
-            if value not in choices:
-                raise ValueError(f"choose from {', '.join(map(str, choices))}")
-            return value
-        if type(None) in choices:  # an optional number
-            if value.lower() == "none":
-                return None
-            kind = next(c for c in choices if c is not type(None))
-        return kind(value)
-    except ValueError as exc:
-        raise ValueError(f"MPC option {key}: cannot parse {value!r} ({exc})") from None
 
 
 @dataclass

@@ -34,12 +34,12 @@ With ``open_loop`` the perturbed candidates are not stepped with the planner in 
 each replays the unperturbed look-ahead's actions plus its offset, all of them at once in
 MuJoCo's own threads (:mod:`pianist.control.rollout_ahead`), and the one that costs least
 (and the per-finger combination) is then looked ahead in closed loop to be compared with the
-planner's own: faster on two cores, a little less F1 (docs/planner.md).
+planner's own: faster on two cores, a little less F1
+(docs/notes/2026-12-07-planner-refine.md).
 """
 
 from __future__ import annotations
 
-import dataclasses
 import time
 from dataclasses import asdict, dataclass
 from typing import TYPE_CHECKING, Any
@@ -48,6 +48,8 @@ import gymnasium as gym
 import numpy as np
 
 from pianist.control.base import BaseController
+from pianist.control.lookahead import LookAhead, blame, step_misses
+from pianist.control.options import RefineOptions
 from pianist.env.handle import ControlHandle, control_handle
 from pianist.env.tape import physics_state, same_state
 from pianist.sim import constants as C
@@ -57,106 +59,6 @@ if TYPE_CHECKING:
     from pianist.control.rollout_ahead import RolloutAhead
     from pianist.env.piano_env import EnvState
     from pianist.music import Song
-
-
-@dataclass(frozen=True)
-class RefineOptions:
-    """How much the refiner looks ahead (see the module docstring)."""
-
-    candidates: int = 8
-    """Perturbed actions tried per step, besides the planner's own."""
-    horizon_steps: int = 4
-    """Steps each candidate is looked ahead (0.2 s at 20 Hz)."""
-    sigma: float = 0.15
-    """Standard deviation of each finger joint's perturbation, in action units ([-1, 1] spans
-    the joint's range)."""
-    arm_sigma: float = 0.0
-    """Standard deviation of the perturbation of each forearm's slide along the keyboard
-    (action units; 0: the forearms are left to the planner). A hand held a little longer
-    over a held key, or moved a little earlier, is a change the fingers alone cannot make."""
-    keep_previous: bool = True
-    """Try the perturbation chosen at the previous step again (in place of one random
-    candidate): a finger that needed more push usually needs it for a few steps."""
-    wrong_weight: float = 1.0
-    """Cost of a key sounded that is not due, against 1 for a due key not sounded."""
-    continue_look_ahead: bool = True
-    """Where the last step played the planner's own action and the episode is where that
-    step's look-ahead went, continue that look-ahead by one step instead of simulating the
-    planner's again from the start: the same actions (the physics is deterministic; both
-    the state and the planner's next action are checked), ``horizon_steps - 1`` fewer steps
-    simulated per such step."""
-    crossing_cost: float = 10.0
-    """Cost of each look-ahead step that ends with two neighbouring fingers (index to little
-    finger) crossed, one more than 3 mm past the other across the keys: perturbed towards
-    each other, they catch, and the one behind then cannot get back to its keys for many
-    steps, longer than the look-ahead sees."""
-    per_finger: bool = True
-    """Also combine the candidates finger by finger: each finger takes the perturbation
-    whose look-ahead cost its own keys least (a due key counts for the finger the plan gives
-    it, a wrong key for the nearest fingertip), and that combination is looked ahead too and
-    played if it costs least. One random perturbation of every finger rarely helps two
-    fingers at once; combined, each finger chooses from all of them."""
-
-    open_loop: bool = False
-    """Look the perturbed candidates ahead open-loop, all at once in MuJoCo's threads
-    (:mod:`pianist.control.rollout_ahead`): each replays the unperturbed look-ahead's actions
-    (the planner's own, in closed loop) plus its offset, instead of stepping a fork with the
-    planner reacting at every step. The unperturbed candidate stays closed-loop. About 1.6
-    times as fast on two cores, for ~0.01 less F1 (open-etude-12, fast: 0.858 against
-    0.866)."""
-    threads: int = 2
-    """Threads of the open-loop look-ahead (0: the calling thread only)."""
-    open_loop_batch: int = 2
-    """With ``open_loop``: candidates simulated per batch (0: all of them in one). The search
-    ends after a batch with a candidate that misses nothing, as the closed-loop one ends at
-    such a candidate, so easy steps simulate fewer; a batch of ``threads`` keeps every
-    thread busy. In pairs against one batch: the same F1 on open-etude-12 (0.8583 against
-    0.8584, fast), 8-15 % faster (docs/planner.md)."""
-    verify: bool = True
-    """With ``open_loop``: look the open-loop candidate that cost least ahead again in closed
-    loop, and the per-finger combination too; only those compete with the unperturbed one.
-    Open-loop, a candidate is scored without the planner's reactions that follow it when it
-    is played (a push for a key that has not sounded, a finger lined up again)."""
-
-    def __post_init__(self) -> None:
-        if self.threads < 0 or self.open_loop_batch < 0:
-            raise ValueError(
-                "refine needs threads >= 0 and open_loop_batch >= 0, not "
-                f"{self.threads} and {self.open_loop_batch}"
-            )
-        if (
-            self.candidates < 0
-            or self.horizon_steps < 1
-            or not self.sigma >= 0
-            or not self.arm_sigma >= 0
-        ):
-            raise ValueError(
-                "refine needs candidates >= 0, horizon_steps >= 1, sigma >= 0 and arm_sigma "
-                f">= 0, not {self.candidates}, {self.horizon_steps}, {self.sigma}, "
-                f"{self.arm_sigma}"
-            )
-
-
-def parse_refine_options(spec: str) -> RefineOptions:
-    """Options from ``"candidates=16,horizon_steps=6"`` (any :class:`RefineOptions` field;
-    empty: the defaults)."""
-    fields = {f.name: f.type for f in dataclasses.fields(RefineOptions)}
-    values: dict[str, Any] = {}
-    for item in filter(None, spec.split(",")):
-        name, _, text = item.partition("=")
-        name = name.strip()
-        if name not in fields:
-            raise ValueError(f"unknown refine option {name!r}; use {', '.join(fields)}")
-        kind = str(fields[name])
-        try:
-            if kind == "bool":
-                values[name] = {"true": True, "1": True, "false": False, "0": False}[text.lower()]
-            else:
-                values[name] = int(text) if kind == "int" else float(text)
-        except (KeyError, ValueError):
-            what = "true or false" if kind == "bool" else "a number"
-            raise ValueError(f"refine option {name} needs {what}, not {text!r}") from None
-    return RefineOptions(**values)
 
 
 @dataclass
@@ -201,8 +103,7 @@ class Refiner(BaseController):
     def reset(self, env: gym.Env, seed: int | None = None) -> None:
         self.planner.reset(env, seed)
         self.handle = control_handle(env)
-        self.ahead = self.handle.fork()
-        self.ahead_handle = control_handle(self.ahead)
+        self.look = LookAhead(self.handle)
         self.rng = np.random.default_rng(0 if seed is None else seed)
         self.dims = self.planner.finger_action_dims()
         self.arm_dims = np.array([hand.tx_actuator for hand in self.planner.hands])
@@ -300,8 +201,7 @@ class Refiner(BaseController):
                 else:
                     costs.append(self._look_ahead(proposal, combined, state, memory)[0])
         # Back to the real episode, the planner as it was after proposing.
-        self.planner.attach(self.handle)
-        self.planner.set_memory(memory)
+        self.look.back(self.planner, memory)
         best = int(np.argmin(costs))  # the first of equals: the proposal wins ties
         self._previous = offsets[best] if best > 0 else None
         if best > 0:
@@ -334,7 +234,7 @@ class Refiner(BaseController):
     def attach(self, handle: ControlHandle) -> None:
         """Act on another environment of the same song and scene from now on (a fork): its
         look-ahead fork is restored from that one's state each step, so it stays."""
-        self.handle = handle
+        self.handle = self.look.home = handle
         self.planner.attach(handle)
 
     def _combine(self, offsets: np.ndarray, finger_costs: np.ndarray) -> np.ndarray:
@@ -357,9 +257,7 @@ class Refiner(BaseController):
         actions, from ``state`` with the planner's ``memory``: the total, and (10,) the part
         of it each finger is answerable for (a due key: the finger the plan gives it; a wrong
         key: the fingertip nearest to it along the keyboard)."""
-        self.ahead.restore(state)
-        self.planner.attach(self.ahead_handle)
-        self.planner.set_memory(memory)
+        self.look.start(self.planner, state, memory)
         trace = self._roll(proposal, offset, state.step, self.options.horizon_steps, False)
         return trace.total()
 
@@ -445,9 +343,7 @@ class Refiner(BaseController):
         )
         if follows:
             assert last is not None and last.end is not None and last.memory is not None
-            self.ahead.restore(last.end)
-            self.planner.attach(self.ahead_handle)
-            self.planner.set_memory(last.memory)
+            self.look.start(self.planner, last.end, last.memory)
             more = self._roll(None, None, last.step + len(last.actions), 1, True, last.end)
             trace = _Trace(
                 step=state.step,
@@ -459,9 +355,7 @@ class Refiner(BaseController):
                 memory=more.memory,
             )
         else:
-            self.ahead.restore(state)
-            self.planner.attach(self.ahead_handle)
-            self.planner.set_memory(memory)
+            self.look.start(self.planner, state, memory)
             spare = last.end if last is not None else None  # the last look-ahead is left
             trace = self._roll(proposal, None, state.step, o.horizon_steps, True, spare)
         self._trace = trace
@@ -483,7 +377,6 @@ class Refiner(BaseController):
         or the song ended within the steps; ``spare``: a snapshot done with, whose simulator
         copy ``end`` takes over)."""
         goal = self.handle.goal.keys
-        site_xpos = self.ahead_handle.data.site_xpos
         trace = _Trace(step=start, costs=[], per_finger=[], actions=[], states=[])
         complete = True
         for j in range(steps):
@@ -493,19 +386,21 @@ class Refiner(BaseController):
                 break
             action = first if j == 0 and first is not None else self.planner.act(None)
             played = np.clip(action if offset is None else action + offset, -1.0, 1.0)
-            _, _, terminated, _, info = self.ahead.step(played)
+            terminated, info = self.look.step(played)
             self.simulated_steps += 1
-            cost, per_finger = self._step_cost(t, info["active_keys"], site_xpos[self.tip_sites, 1])
+            cost, per_finger = self._step_cost(
+                t, info["active_keys"], self.look.tip_y(self.tip_sites)
+            )
             trace.costs.append(cost)
             trace.per_finger.append(per_finger)
             if keep:
                 trace.actions.append(np.asarray(action).copy())
-                trace.states.append(physics_state(self.ahead_handle.data))
+                trace.states.append(physics_state(self.look.handle.data))
             if terminated:
                 complete = False
                 break
         if keep and complete:
-            trace.end = self.ahead.snapshot(spare)
+            trace.end = self.look.snapshot(spare)
             trace.memory = self.planner.memory()
         return trace
 
@@ -515,16 +410,16 @@ class Refiner(BaseController):
         ``wrong_weight``), and ``crossing_cost`` if two fingers are crossed; and (10,) each
         finger's part of it."""
         o = self.options
-        missed = np.flatnonzero(self.planned[t] & ~active)
-        wrong = np.flatnonzero(active & ~self.handle.goal.keys[t])
+        missed, _ = step_misses(self.planned[t], active)  # only the keys the plan plays
+        _, wrong = step_misses(self.handle.goal.keys[t], active)
         cost = float(missed.size + o.wrong_weight * wrong.size)
         per_finger = np.zeros(10)
-        owners = self.planner.fingers[t, missed]
-        np.add.at(per_finger, owners[owners >= 0], 1.0)
-        if wrong.size:
-            key_y = self.planner.key_point[wrong, 1]
-            nearest = np.argmin(np.abs(key_y[:, None] - tip_y[None, :]), axis=1)
-            np.add.at(per_finger, self.tip_fingers[nearest], o.wrong_weight)
+        key_y = self.planner.key_point[:, 1]
+        by_plan, by_tip = blame(
+            missed, wrong, self.planner.fingers[t], key_y, tip_y, self.tip_fingers
+        )
+        np.add.at(per_finger, by_plan, 1.0)
+        np.add.at(per_finger, by_tip, o.wrong_weight)
         crossed = self._crossed(tip_y)
         if crossed.size:
             cost += o.crossing_cost

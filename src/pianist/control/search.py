@@ -31,126 +31,32 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict
 from typing import TYPE_CHECKING, Any, Protocol, cast
 
 import gymnasium as gym
 import numpy as np
 
-from pianist.control.base import BaseController
+from pianist.control.base import BaseController, Controller
+from pianist.control.lookahead import LookAhead, Rewindable, blame, step_misses
+from pianist.control.options import VARIANTS, SearchOptions
 from pianist.control.planner.config import FINGERS_PER_HAND
 from pianist.control.scoring import step_f1_loss
-from pianist.env.handle import ControlHandle, control_handle
+from pianist.env.handle import control_handle
 
 if TYPE_CHECKING:
     from pianist.control.planner import IKPlanner
     from pianist.env.piano_env import EnvState
     from pianist.music import Song
 
-#: Named execution settings, as :class:`pianist.control.planner.PlannerConfig` overrides.
-#: None changes the plan (hand positions, fingering): a variant can take over mid-piece.
-VARIANTS: dict[str, dict[str, Any]] = {
-    "plain": {},
-    # Feedback on the wrist's flexion too (gain 1): under a chord the keys bend the wrist up
-    # less, so the last finger down is not lifted off its key.
-    "stiff-wrist": {"wrist_feedback": (2.0, 1.0)},
-    # Every finger but the thumb commanded 0.2 rad further down while it presses.
-    "finger-push": {"finger_push_rad": (0.2, 0.2, 0.2, 0.2)},
-    # Harder down for a pressing finger by 1 rad per radian the keys bend the wrist up.
-    "bent-wrist-push": {"bent_wrist_push": 1.0},
-    # Fingers due soon hover 5 mm above their keys instead of 10: earlier strikes.
-    "low-hover": {"hover_height_m": 0.005},
-    # Half the wrist's flexion feedback of stiff-wrist.
-    "half-stiff-wrist": {"wrist_feedback": (2.0, 0.5)},
-    # The thumb commanded 0.5 rad further down while it presses (0.3 plain).
-    "thumb-push": {"thumb_push_rad": 0.5},
-    # A finger presses once within 12 mm (11 on a black key) of its key, not 9 (8).
-    "loose-align": {"align_tolerance_m": 0.012, "black_align_tolerance_m": 0.011},
-}
 
-
-@dataclass(frozen=True)
-class SearchOptions:
-    """How the segment search looks ahead (see the module docstring)."""
-
-    segment_steps: int = 10
-    """Control steps one variant plays before the next choice (0.5 s at 20 Hz)."""
-    overlap_steps: int = 5
-    """Steps each variant is also scored beyond its segment: a variant that gains at the end
-    of a segment by leaving the hand badly placed for the next one is not chosen for it."""
-    variants: tuple[str, ...] = (
-        "plain",
-        "stiff-wrist",
-        "finger-push",
-        "bent-wrist-push",
-        "low-hover",
-    )
-    """Names from :data:`VARIANTS`; the first is the base's own setting and wins ties."""
-
-    def __post_init__(self) -> None:
-        if self.segment_steps < 1 or self.overlap_steps < 0:
-            raise ValueError(
-                "search needs segment_steps >= 1 and overlap_steps >= 0, not "
-                f"{self.segment_steps}, {self.overlap_steps}"
-            )
-        unknown = [name for name in self.variants if name not in VARIANTS]
-        if unknown or not self.variants:
-            raise ValueError(
-                f"unknown search variants {unknown or '(none given)'}; use {', '.join(VARIANTS)}"
-            )
-
-
-class Searchable(Protocol):
-    """A controller the search can run ahead on a fork and bring back: the planner itself,
-    or a controller with the planner as its ``planner`` (whose ``config`` the variants
-    replace)."""
-
-    def reset(self, env: gym.Env, seed: int | None = None) -> None: ...
-
-    def memory(self) -> Any:
-        """A copy of what the controller remembers between steps."""
-        ...
-
-    def set_memory(self, memory: Any) -> None:
-        """Go back to a :meth:`memory` copy."""
-        ...
-
-    def attach(self, handle: ControlHandle) -> None:
-        """Act on another environment of the same song and scene from now on."""
-        ...
+class Searchable(Controller, Rewindable, Protocol):
+    """A controller the search can run ahead on a fork and bring back
+    (:class:`~pianist.control.lookahead.Rewindable`): the planner itself, or a controller
+    with the planner as its ``planner`` (whose ``config`` the variants replace). It acts
+    without an observation (``act(None)``) on a fork: it reads the simulator."""
 
     def act(self, observation: Any = None) -> np.ndarray: ...
-
-
-def parse_search_spec(spec: str) -> tuple[str, SearchOptions]:
-    """The base (``planner`` or ``refine``) and options from a controller spec's part after
-    ``search:``, e.g. ``"refine,segment_steps=10,variants=plain+stiff-wrist"`` (empty: the
-    planner with the default options).
-
-    Raises:
-        ValueError: an unknown base, field or variant, or a value that is not a whole number.
-    """
-    base, values = "planner", dict[str, Any]()
-    for item in filter(None, (part.strip() for part in spec.split(","))):
-        name, sep, text = item.partition("=")
-        if not sep:
-            if name not in ("planner", "refine"):
-                raise ValueError(f"search runs over planner or refine, not {name!r}")
-            base = name
-        elif name == "variants":
-            values[name] = tuple(filter(None, text.split("+")))
-        elif name in ("segment_steps", "overlap_steps"):
-            try:
-                values[name] = int(text)
-            except ValueError:
-                raise ValueError(
-                    f"search option {name} needs a whole number, not {text!r}"
-                ) from None
-        else:
-            raise ValueError(
-                f"unknown search option {name!r}; use segment_steps, overlap_steps or variants"
-            )
-    return base, SearchOptions(**values)
 
 
 def _planner(base: Searchable) -> IKPlanner:
@@ -176,8 +82,7 @@ class SegmentSearch(BaseController):
     def reset(self, env: gym.Env, seed: int | None = None) -> None:
         self.base.reset(env, seed)
         self.handle = control_handle(env)
-        self.ahead = self.handle.fork()
-        self.ahead_handle = control_handle(self.ahead)
+        self.look = LookAhead(self.handle)
         self.planner = _planner(self.base)
         own = self.planner.config
         self.configs = [dataclasses.replace(own, **VARIANTS[n]) for n in self.options.variants]
@@ -188,7 +93,9 @@ class SegmentSearch(BaseController):
         for h, hand in enumerate(hands):
             self.finger_hand[hand.finger_offset : hand.finger_offset + FINGERS_PER_HAND] = h
         self.tip_sites = np.concatenate([hand.sites for hand in hands])
-        self.tip_hand = np.repeat(np.arange(len(hands)), FINGERS_PER_HAND)
+        self.tip_fingers = np.array(
+            [hand.finger_offset + i for hand in hands for i in range(FINGERS_PER_HAND)]
+        )
         T = self.handle.goal.num_frames
         # (T, hands) the variant (index into options.variants) each hand played each step.
         self.chosen = np.zeros((T, len(hands)), dtype=np.int8)
@@ -238,8 +145,7 @@ class SegmentSearch(BaseController):
                 losses.append(self._look_ahead(combined, t, end, state, memory)[0])
         best = int(np.argmin([loss.sum() for loss in losses]))
         self.predicted_loss[t:end] = losses[best]
-        self.base.attach(self.handle)
-        self.base.set_memory(memory)
+        self.look.back(self.base, memory)
         self._use(tried[best])
         return tried[best]
 
@@ -250,28 +156,22 @@ class SegmentSearch(BaseController):
         ``candidate``: (steps,) 1 - F1 of each step, and (hands,) the keys each hand is
         answerable for (a due key not sounding: its planned finger's hand; a key sounding
         that is not due: the hand of the fingertip nearest it across the keys)."""
-        self.ahead.restore(state)
-        self.base.attach(self.ahead_handle)
-        self.base.set_memory(memory)
+        self.look.start(self.base, state, memory)
         self._use(candidate)
         goal = self.handle.goal.keys
         fingers = self.planner.fingers
         key_y = self.planner.key_point[:, 1]
-        site_xpos = self.ahead_handle.data.site_xpos
         loss = np.zeros(end - t)
         cost = np.zeros(self.chosen.shape[1])
         for j, step in enumerate(range(t, end)):
-            _, _, terminated, _, info = self.ahead.step(self.base.act(None))
+            terminated, info = self.look.step(self.base.act(None))
             due, active = goal[step], info["active_keys"]
             loss[j] = step_f1_loss(due, active)
-            missed = np.flatnonzero(due & ~active)
-            owners = fingers[step, missed]
-            np.add.at(cost, self.finger_hand[owners[owners >= 0]], 1.0)
-            wrong = np.flatnonzero(active & ~due)
-            if wrong.size:
-                tip_y = site_xpos[self.tip_sites, 1]
-                nearest = np.argmin(np.abs(key_y[wrong, None] - tip_y[None, :]), axis=1)
-                np.add.at(cost, self.tip_hand[nearest], 1.0)
+            missed, wrong = step_misses(due, active)
+            tip_y = self.look.tip_y(self.tip_sites)
+            by_plan, by_tip = blame(missed, wrong, fingers[step], key_y, tip_y, self.tip_fingers)
+            np.add.at(cost, self.finger_hand[by_plan], 1.0)
+            np.add.at(cost, self.finger_hand[by_tip], 1.0)
             if terminated:
                 loss[j + 1 :] = 1.0  # the steps it did not play lose everything
                 break
@@ -285,16 +185,13 @@ class SegmentSearch(BaseController):
         out = {"search_seconds_per_segment": self._seconds / max(self._segments, 1)}
         for i, name in enumerate(self.options.variants):
             out[f"search_share_{name}"] = float(np.mean(played == i)) if played.size else 0.0
-        base_stats = getattr(self.base, "stats", None)
-        return {**(base_stats() if base_stats else {}), **out}
+        return {**self.base.stats(), **out}
 
     def plan_arrays(self) -> dict[str, np.ndarray]:
         """The base's plan, and ``search_variant`` (T, hands) int8: the index (into
         ``SearchOptions.variants``) of the variant each hand (in the planner's order) played
         each step with."""
-        arrays = getattr(self.base, "plan_arrays", None)
-        return {**(arrays() if arrays else {}), "search_variant": self.chosen.copy()}
+        return {**self.base.plan_arrays(), "search_variant": self.chosen.copy()}
 
     def options_dict(self) -> dict[str, Any]:
-        base_options = getattr(self.base, "options_dict", None)
-        return {**(base_options() if base_options else {}), "search": asdict(self.options)}
+        return {**self.base.options_dict(), "search": asdict(self.options)}

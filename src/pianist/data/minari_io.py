@@ -235,15 +235,14 @@ def dataset_setup(dataset: Any) -> tuple[dict[str, Any], list[str]]:
     """The environment options a loaded dataset's episodes were played in (its controller's
     declared ones and the physics) and its songs (as given to the build, in episode order).
     A policy trained on the dataset plays in those options."""
-    from pianist.agents.specs import controller_from_spec
+    from pianist.control.registry import build_controller
     from pianist.music import load_song
 
     metas = list(dataset.storage.get_episode_metadata(dataset.episode_indices))
     settings = dataset.storage.metadata.get("pianist", {}).get("settings", {})
     songs = list(dict.fromkeys(str(m.get("song_ref", m.get("song"))) for m in metas))
-    controller = controller_from_spec(settings.get("controller", "planner"))
-    declare = getattr(controller, "env_options", None)
-    options: dict[str, Any] = dict(declare(load_song(songs[0]))) if declare is not None else {}
+    controller = build_controller(settings.get("controller", "planner"))
+    options: dict[str, Any] = dict(controller.env_options(load_song(songs[0])))
     physics = {str(m["physics"]) for m in metas if "physics" in m}
     if len(physics) == 1:
         options["physics"] = physics.pop()

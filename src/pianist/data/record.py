@@ -124,30 +124,12 @@ def song_provenance(ref: str, song: Any | None = None) -> dict[str, Any]:
 
 
 def episode_controller(spec: str, noise: float) -> Any:
-    """The controller of spec ``spec`` (:func:`pianist.agents.specs.controller_from_spec`),
+    """The controller of spec ``spec`` (:func:`pianist.control.registry.build_controller`),
     with Gaussian action noise of std ``noise`` when > 0."""
-    from pianist.agents.specs import controller_from_spec
+    from pianist.control.registry import build_controller
 
-    controller = controller_from_spec(spec)
-    return NoisyDemonstrator(controller, noise) if noise > 0 else controller
-
-
-class NoisyDemonstrator(NoisyController):
-    """A NoisyController that keeps what play() asks of the wrapped controller: its
-    environment wrapper (a trained policy's task entries), statistics and clean-up."""
-
-    def wrap_env(self, env: Any) -> Any:
-        wrap = getattr(self.controller, "wrap_env", None)
-        return wrap(env) if wrap is not None else env
-
-    def stats(self) -> dict[str, Any]:
-        stats = getattr(self.controller, "stats", None)
-        return dict(stats()) if stats is not None else {}
-
-    def close(self) -> None:
-        close = getattr(self.controller, "close", None)
-        if close is not None:
-            close()
+    controller = build_controller(spec)
+    return NoisyController(controller, noise) if noise > 0 else controller
 
 
 def record_episode(
@@ -208,15 +190,9 @@ def episode_record(
     ``record_observations=True``."""
     from minari.serialization import serialize_space
 
-    from pianist.eval.session import ObservationRecorder
-
     episode, metrics = result.episode, result.metrics
     if "observations" not in episode.extra:
         raise ValueError("the episode was played without record_observations=True")
-    # The spaces of the environment itself, inside any wrapper of the controller's.
-    env = result.env
-    while not isinstance(env, ObservationRecorder):
-        env = env.env
     infos: dict[str, Any] = {
         "active_keys": episode.active_keys.astype(bool),
         "sustain": episode.sustain.astype(bool),
@@ -236,8 +212,9 @@ def episode_record(
         "control_timestep_s": episode.control_timestep_s,
         "env_options": metrics["env_options"],
         **{k: metrics[k] for k in keep if k in metrics},
-        "observation_space": serialize_space(env.observation_space),
-        "action_space": serialize_space(env.action_space),
+        # The spaces of the environment itself, inside any wrapper of the controller's.
+        "observation_space": serialize_space(result.observation_space),
+        "action_space": serialize_space(result.action_space),
     }
     return EpisodeRecord(
         observations=dict(episode.extra["observations"]),

@@ -74,6 +74,20 @@ class ControlHandle:
         return self._env.config
 
     @property
+    def observation_space(self) -> gym.spaces.Dict:
+        """The environment's own observation space (inside any wrapper)."""
+        space = self._env.observation_space
+        assert isinstance(space, gym.spaces.Dict)
+        return space
+
+    @property
+    def action_space(self) -> gym.spaces.Box:
+        """The environment's own action space (inside any wrapper)."""
+        space = self._env.action_space
+        assert isinstance(space, gym.spaces.Box)
+        return space
+
+    @property
     def control_timestep_s(self) -> float:
         """Seconds of simulated time per step (one goal frame)."""
         return self._env.config.control_timestep_s

@@ -3,22 +3,28 @@
 from __future__ import annotations
 
 import time
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from pianist.env.handle import control_handle
 from pianist.eval.episode import Episode
 
+if TYPE_CHECKING:
+    import gymnasium as gym
+
+    from pianist.control.base import Controller
+
 
 def run_episode(
-    env: Any, controller: Any, seed: int | None = 0, *, progress: bool = False
+    env: gym.Env, controller: Controller, seed: int | None = 0, *, progress: bool = False
 ) -> Episode:
     """Play one full episode.
 
     Args:
         env: a :class:`pianist.env.PianoEnv` or a wrapper around one.
-        controller: an object with ``reset(env, seed)`` and ``act(observation) -> action``.
+        controller: the controller (:class:`pianist.control.base.Controller`; only ``reset``
+            and ``act`` are called here, :func:`pianist.eval.session.play` calls the rest).
         seed: passed to ``env.reset`` and to the controller.
         progress: show a progress bar on stderr with the speed as a multiple of real time
             (controller included).

@@ -10,51 +10,58 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import gymnasium as gym
 import numpy as np
 
+from pianist.control.base import Controller
 from pianist.env import PianoEnv
 from pianist.env.handle import control_handle
 from pianist.eval.episode import Episode
 from pianist.eval.errors import f1_lost_by_kind, note_errors
 from pianist.eval.rollout import run_episode
-from pianist.music import Song, load_song
+from pianist.music import GoalFrames, Song, load_song
+
+if TYPE_CHECKING:
+    from pianist.sim.scene import Scene
 
 Fingering = Literal["auto", "file", "robot", "none"]
 
 
 @dataclass
 class PlayResult:
-    """One played episode and what it was played with.
+    """One played episode and what it was played with: data only, no live environment.
 
     Attributes:
         song: the song as played (its fingering resolved).
         episode: the episode record (actions, keys, events, qpos over its T steps).
         metrics: the episode's metrics, the controller's own statistics and settings, the
             options below, ``wall_seconds`` and ``realtime_factor`` (simulated / wall time).
-        env: the environment it was played in (for rendering the episode again).
+        goal: the goal frames the episode was scored against.
+        scene: the compiled scene it was played in (its model and index arrays, read only:
+            for replaying the episode in a video or reading key angles).
+        reward_weights: the reward terms' weights.
+        observation_space, action_space: the environment's own spaces (inside any wrapper
+            of the controller's).
         env_options: the :class:`PianoEnv` options used, the controller's included.
     """
 
     song: Song
     episode: Episode
     metrics: dict[str, Any]
-    env: gym.Env
+    goal: GoalFrames
+    scene: Scene
+    reward_weights: dict[str, float]
+    observation_space: gym.Space
+    action_space: gym.Space
     env_options: dict[str, Any] = field(default_factory=dict)
 
 
-def controller_env_options(controller: Any, song: Song) -> dict[str, Any]:
-    """The environment options ``controller`` declares for ``song`` (none if it declares
-    nothing; see :class:`pianist.control.BaseController`)."""
-    declare = getattr(controller, "env_options", None)
-    return dict(declare(song)) if declare is not None else {}
-
-
-def resolve_env_options(controller: Any, song: Song, **options: Any) -> dict[str, Any]:
+def resolve_env_options(controller: Controller, song: Song, **options: Any) -> dict[str, Any]:
     """The user's environment ``options`` with the controller's declared ones applied.
 
     Options given as None are left to the environment's defaults. A declared option wins over
@@ -64,7 +71,7 @@ def resolve_env_options(controller: Any, song: Song, **options: Any) -> dict[str
         ValueError: an explicit option contradicts what the controller needs.
     """
     chosen = {k: v for k, v in options.items() if v is not None}
-    declared = controller_env_options(controller, song)
+    declared = dict(controller.env_options(song))
     for key, value in declared.items():
         if key in chosen and _normalise(chosen[key]) != _normalise(value):
             name = type(controller).__name__
@@ -74,7 +81,7 @@ def resolve_env_options(controller: Any, song: Song, **options: Any) -> dict[str
     return {**chosen, **declared}
 
 
-def make_env(song: Song | str | Path, controller: Any, **options: Any) -> gym.Env:
+def make_env(song: Song | str | Path, controller: Controller, **options: Any) -> gym.Env:
     """The environment ``controller`` plays ``song`` in.
 
     Args:
@@ -90,7 +97,7 @@ def make_env(song: Song | str | Path, controller: Any, **options: Any) -> gym.En
 
 
 def _build_env(
-    song: Song, controller: Any, resolved: dict[str, Any], recorder: bool = False
+    song: Song, controller: Controller, resolved: dict[str, Any], recorder: bool = False
 ) -> gym.Env:
     """The environment for already resolved options, wrapped as the controller asks (and,
     with ``recorder``, in an :class:`ObservationRecorder` first, inside the controller's
@@ -98,13 +105,12 @@ def _build_env(
     env: gym.Env = PianoEnv(song, **resolved)
     if recorder:
         env = ObservationRecorder(env)
-    wrap = getattr(controller, "wrap_env", None)
-    return wrap(env) if wrap is not None else env
+    return controller.wrap_env(env)
 
 
 def play(
     song: Song | str | Path,
-    controller: Any,
+    controller: Controller,
     *,
     physics: str | None = None,
     fingering: Fingering = "auto",
@@ -113,6 +119,7 @@ def play(
     env_options: dict[str, Any] | None = None,
     progress: bool = False,
     record_observations: bool = False,
+    check_scene: Callable[[Scene], None] | None = None,
 ) -> PlayResult:
     """Play ``song`` once with ``controller`` and score it.
 
@@ -130,6 +137,8 @@ def play(
             of the controller) in ``episode.extra["observations"]``: name -> (T + 1, ...)
             array, the reset's first; and each step's end flags, ``extra["terminations"]`` and
             ``extra["truncations"]``, (T,) bool (for demonstration datasets; off by default).
+        check_scene: called with the scene once the environment is built, before the episode
+            (to refuse media options the scene cannot render before a long episode).
     Raises:
         ValueError: a negative lead-in or seed, or options the controller cannot play with.
         MusicError: the song cannot be loaded.
@@ -148,7 +157,10 @@ def play(
         options.setdefault("fingering_reward", "optimal")
     resolved = resolve_env_options(controller, song, **options)
     env = _build_env(song, controller, resolved, recorder=record_observations)
-    resolved.setdefault("physics", control_handle(env).config.scene.physics)
+    handle = control_handle(env)
+    resolved.setdefault("physics", handle.config.scene.physics)
+    if check_scene is not None:
+        check_scene(handle.scene)
 
     start = time.perf_counter()
     try:
@@ -157,14 +169,11 @@ def play(
         metrics: dict[str, Any] = episode.metrics()
         metrics.update(note_errors(episode.active_keys, episode.goal_keys))
         # Planning controllers report their own timing and settings.
-        stats = getattr(controller, "stats", None)
-        metrics.update(stats() if stats is not None else {})
-        settings = getattr(controller, "options_dict", None)
-        if settings is not None and settings():
-            metrics["controller_options"] = settings()
-        plan = getattr(controller, "plan_arrays", None)
-        if plan is not None:
-            episode.extra.update(plan())
+        metrics.update(controller.stats())
+        settings = controller.options_dict()
+        if settings:
+            metrics["controller_options"] = settings
+        episode.extra.update(controller.plan_arrays())
         metrics.update(f1_lost_by_kind(episode.active_keys, episode.goal_keys, episode.extra))
         if record_observations:
             recorder = _find_recorder(env)
@@ -172,9 +181,7 @@ def play(
             episode.extra["terminations"] = np.array(recorder.terminations, dtype=bool)
             episode.extra["truncations"] = np.array(recorder.truncations, dtype=bool)
     finally:
-        close = getattr(controller, "close", None)
-        if close is not None:
-            close()
+        controller.close()
     metrics.update(
         song=song.name,
         fingering=fingering,
@@ -184,7 +191,19 @@ def play(
         wall_seconds=wall,
         realtime_factor=metrics["seconds"] / wall if wall > 0 else float("inf"),
     )
-    return PlayResult(song, episode, metrics, env, resolved)
+    result = PlayResult(
+        song=song,
+        episode=episode,
+        metrics=metrics,
+        goal=handle.goal,
+        scene=handle.scene,
+        reward_weights=handle.config.rewards.as_dict(),
+        observation_space=handle.observation_space,
+        action_space=handle.action_space,
+        env_options=resolved,
+    )
+    env.close()
+    return result
 
 
 class ObservationRecorder(gym.Wrapper):

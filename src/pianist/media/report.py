@@ -187,14 +187,12 @@ def _nearest_fingers(result: PlayResult, active: np.ndarray) -> np.ndarray:
     positions (row t + 1 of ``qpos`` is the state at the end of step t)."""
     import mujoco
 
-    from pianist.env.handle import control_handle
-
     out = np.full(active.shape, -1, dtype=np.int8)
     qpos = result.episode.qpos
     if qpos is None or not active.any():
         return out
-    handle = control_handle(result.env)
-    model, scene = handle.model, handle.scene
+    scene = result.scene
+    model = scene.model
     tips: list[int] = []
     numbers: list[int] = []
     for hand in scene.hands:

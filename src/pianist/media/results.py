@@ -13,10 +13,9 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from pianist.env.handle import control_handle
-from pianist.eval.session import PlayResult
+from pianist.eval.session import PlayResult, play
 from pianist.files import (
     atomic_dir,
     check_replaceable_dir,
@@ -27,6 +26,11 @@ from pianist.media.errors import MediaError
 from pianist.media.report import KEY_RECORD, REPORT
 from pianist.music import write_midi
 from pianist.music.transforms import delay
+
+if TYPE_CHECKING:
+    from pianist.eval.session import Controller
+    from pianist.music import Song
+    from pianist.sim.scene import Scene
 
 METRICS = "metrics.json"
 PERFORMANCE_MIDI = "performance.mid"
@@ -102,25 +106,59 @@ def check_output_folder(out: str | os.PathLike[str]) -> None:
         raise MediaError(f"output directory {out} is not writable ({parent} is read-only)")
 
 
-def check_media_options(result_env: Any, media: MediaOptions) -> None:
+def check_media_options(scene: Scene | None, media: MediaOptions) -> None:
     """Refuse bad media options before a long episode (one-line :class:`MediaError`).
 
-    ``result_env``: the environment the episode will be played in (for its cameras).
+    ``scene``: the scene the episode will be played in (for its cameras; None: the video's
+    options are not checked).
     """
     if media.audio or media.video:
         from pianist.media.audio import check_soundfont
 
         check_soundfont(media.soundfont)
-    if media.video:
+    if media.video and scene is not None:
         from pianist.media.video import check_video_options
 
-        check_video_options(
-            control_handle(result_env).model,
-            media.camera,
-            media.fps,
-            media.size,
-            media.falling_notes,
-        )
+        check_video_options(scene.model, media.camera, media.fps, media.size, media.falling_notes)
+
+
+def play_to_folder(
+    song: Song | str | Path,
+    controller: Controller,
+    out: str | os.PathLike[str],
+    media: MediaOptions | None = None,
+    *,
+    title: str | None = None,
+    extra_metrics: dict[str, Any] | None = None,
+    **play_options: Any,
+) -> PlayResult:
+    """Play ``song`` with ``controller`` and write the result's files into ``out``: the
+    folder and the media options are checked before the episode (the video's against the
+    scene, which is built once), and nothing is written unless the episode completes.
+
+    Args:
+        song, controller: as :func:`pianist.eval.session.play` takes them.
+        out, media, extra_metrics: as :func:`write_result` takes them.
+        title: the piano roll's title; ``{physics}`` in it is replaced by the physics preset
+            played in (the controller's own when none is given).
+        play_options: the other keywords of :func:`pianist.eval.session.play` (physics,
+            fingering, initial_buffer_s, seed, env_options, progress).
+    Raises:
+        MediaError: the folder or a medium cannot be written; and what ``play`` raises.
+    """
+    media = media or MediaOptions()
+    check_output_folder(Path(out))
+    check_media_options(None, media)
+    result = play(
+        song,
+        controller,
+        check_scene=lambda scene: check_media_options(scene, media),
+        **play_options,
+    )
+    if title is not None:
+        title = title.replace("{physics}", str(result.metrics["physics"]))
+    write_result(result, out, media, title=title, extra_metrics=extra_metrics)
+    return result
 
 
 def write_result(
@@ -155,7 +193,7 @@ def write_result(
     performance = episode.performance()
     velocities = None
     if episode.qpos is not None:  # velocities come from the keys' recorded angles
-        velocities = episode_velocities(episode, control_handle(result.env).scene)
+        velocities = episode_velocities(episode, result.scene)
         performance = with_velocities(performance, episode.note_events, velocities)
         metrics.update(velocity_metrics(performance, _score(result)))
     metrics.update(extra_metrics or {})
@@ -190,11 +228,8 @@ def _write_media(
     )
     from pianist.media.plots import plot_pianoroll
 
-    handle = control_handle(result.env)
     episode = result.episode
-    plot_pianoroll(
-        episode, folder / PIANOROLL, title=title or "", weights=handle.config.rewards.as_dict()
-    )
+    plot_pianoroll(episode, folder / PIANOROLL, title=title or "", weights=result.reward_weights)
     performance = None
     if media.audio:
         duration = episode.num_steps * episode.control_timestep_s
@@ -211,7 +246,7 @@ def _write_media(
         from pianist.media.video import render_episode
 
         render_episode(
-            handle,
+            result.scene,
             episode,
             folder / VIDEO,
             camera=media.camera,

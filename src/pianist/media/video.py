@@ -5,8 +5,8 @@ variable. On a machine without a display set ``MUJOCO_GL=egl`` (GPU or Mesa EGL)
 ``MUJOCO_GL=osmesa`` before anything imports ``mujoco``; this module never sets it, because by
 the time it runs ``mujoco`` is usually imported already.
 
-The replay does not touch the environment: it renders a copy of ``env.model`` (recoloured) with
-its own ``MjData``, so ``env`` can go on being used afterwards.
+The replay does not touch the environment: it renders a copy of the scene's model (recoloured)
+with its own ``MjData``, so an environment can go on being used afterwards.
 """
 
 from __future__ import annotations
@@ -29,6 +29,7 @@ from pianist.sim.constants import KEYBOARD_LENGTH_M, WHITE_KEY_HEIGHT_M, WHITE_K
 
 if TYPE_CHECKING:
     from pianist.eval import Episode
+    from pianist.sim.scene import Scene
 
 PEDAL_KEY = -1
 NUM_KEYS = 88
@@ -73,7 +74,7 @@ def frame_times(num_steps: int, control_timestep_s: float, fps: float) -> np.nda
 
 
 def render_episode(
-    env: Any,
+    scene: Any,
     episode: Episode,
     path: str | os.PathLike[str],
     *,
@@ -87,7 +88,7 @@ def render_episode(
     falling_notes: bool = False,
     antialias: bool = True,
 ) -> int:
-    """Replay ``episode`` in ``env``'s scene and write it to an MP4 file.
+    """Replay ``episode`` in ``scene`` and write it to an MP4 file.
 
     Frame i shows time i / fps (see :func:`frame_times`): the recorded joint positions
     (``episode.qpos``, one row per control step) are linearly interpolated in between steps.
@@ -105,9 +106,10 @@ def render_episode(
     rendered that much shorter, so the frame keeps ``size``.
 
     Args:
-        env: the :class:`pianist.env.PianoEnv` that played the episode, or its
-            :class:`pianist.env.handle.ControlHandle` (its ``model`` and
-            ``scene`` are read, never changed).
+        scene: the :class:`pianist.sim.scene.Scene` the episode was played in (a
+            :class:`~pianist.eval.session.PlayResult`'s), or the :class:`pianist.env.PianoEnv`
+            or :class:`pianist.env.handle.ControlHandle` that played it (their scene); read,
+            never changed.
         episode: a recorded episode with ``qpos`` (as :func:`pianist.eval.run_episode` makes).
         path: the .mp4 file to write, atomically; its folder must exist.
         camera: ``auto`` (the default: both hands and the keys played, from above the
@@ -131,16 +133,19 @@ def render_episode(
     """
     import mujoco
 
-    model_in = env.model
+    from pianist.sim.scene import Scene
+
+    scene = scene if isinstance(scene, Scene) else scene.scene
+    model_in = scene.model
     height, width, fps = check_video_options(model_in, camera, fps, size, falling_notes)
     qpos = _check_qpos(episode, model_in.nq)
     times = frame_times(episode.num_steps, episode.control_timestep_s, fps)
 
-    model = _recoloured_copy(env, mujoco)
+    model = _recoloured_copy(scene, mujoco)
     # Read when the renderer's context is made: the offscreen buffer's samples per pixel.
     model.vis.quality.offsamples = ANTIALIAS_SAMPLES if antialias else 0
     data = mujoco.MjData(model)
-    key_geoms = np.asarray(env.scene.key_geoms)
+    key_geoms = np.asarray(scene.key_geoms)
     hinge_only = bool(
         np.all(
             (model.jnt_type == mujoco.mjtJoint.mjJNT_HINGE)
@@ -153,7 +158,7 @@ def render_episode(
     strip_rows = strip_height(height) if falling_notes else 0
     picture = (height - strip_rows, width)
     if camera == AUTO_CAMERA:
-        frame_episode(model, data, env.scene, episode, picture)
+        frame_episode(model, data, scene, episode, picture)
         camera = _FRAMED_CAMERA
     layout = None
     if falling_notes:
@@ -388,20 +393,20 @@ def keyboard_span(model: Any, data: Any, camera: int, size: tuple[int, int]) -> 
     return (-half - c0 * per_px, -half + (size[1] - c0) * per_px)
 
 
-def _recoloured_copy(env: Any, mujoco: Any) -> Any:
+def _recoloured_copy(scene: Scene, mujoco: Any) -> Any:
     """A copy of the model with flat-coloured fingertips, lighter hands, brighter lights and
     sleeping disabled."""
-    model = copy.deepcopy(env.model)
+    model = copy.deepcopy(scene.model)
     style_model(model)
     # A fresh MjData has everything awake, but keep kinematics from ever skipping a body.
     model.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_SLEEP)
-    for hand in env.scene.hands:
+    for hand in scene.hands:
         for finger, site in enumerate(hand.fingertip_sites):
             geoms = np.flatnonzero(model.geom_bodyid == model.site_bodyid[site])
             # A geom's material colour overrides its rgba: drop the material.
             model.geom_matid[geoms] = -1
             model.geom_rgba[geoms] = FINGER_RGBA[finger]
-    model.geom_matid[np.asarray(env.scene.key_geoms)] = -1
+    model.geom_matid[np.asarray(scene.key_geoms)] = -1
     return model
 
 

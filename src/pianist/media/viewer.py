@@ -90,7 +90,7 @@ class LiveView:
 
         self._mujoco = mujoco
         self._handle = control_handle(env)
-        self.model = _recoloured_copy(self._handle, mujoco)
+        self.model = _recoloured_copy(self._handle.scene, mujoco)
         self.data = mujoco.MjData(self.model)
         self._key_geoms = np.asarray(self._handle.scene.key_geoms)
         self._base_rgba = self.model.geom_rgba[self._key_geoms].copy()
@@ -224,8 +224,8 @@ class _Paced(gym.Wrapper):
 
 class _Watched:
     """``controller`` as it is, but for the environment it plays in, which it wraps in a
-    :class:`_Paced` window (over its own ``wrap_env``, if any). Every other attribute, the
-    optional parts :func:`pianist.eval.session.play` looks for included, is the controller's."""
+    :class:`_Paced` window (over its own ``wrap_env``). Everything else
+    :func:`pianist.eval.session.play` asks of a controller is the controller's."""
 
     def __init__(self, controller: Any, stats: ViewStats, realtime: bool, label: str) -> None:
         self._controller = controller
@@ -235,8 +235,7 @@ class _Watched:
         self.paced: _Paced | None = None
 
     def wrap_env(self, env: gym.Env) -> gym.Env:
-        wrap = getattr(self._controller, "wrap_env", None)
-        inner = wrap(env) if wrap is not None else env
+        inner = self._controller.wrap_env(env)
         self.paced = _Paced(inner, self._stats, self._realtime, self._label)
         return self.paced
 
@@ -246,8 +245,22 @@ class _Watched:
     def act(self, observation: Any) -> Any:
         return self._controller.act(observation)
 
-    def __getattr__(self, name: str) -> Any:
-        return getattr(self._controller, name)
+    # The rest of what play() asks of a controller is the controller's own.
+
+    def env_options(self, song: Any = None) -> dict[str, Any]:
+        return self._controller.env_options(song)
+
+    def stats(self) -> dict[str, float]:
+        return self._controller.stats()
+
+    def options_dict(self) -> dict[str, Any]:
+        return self._controller.options_dict()
+
+    def plan_arrays(self) -> dict[str, np.ndarray]:
+        return self._controller.plan_arrays()
+
+    def close(self) -> None:
+        self._controller.close()
 
 
 def view(

@@ -106,19 +106,19 @@ class Task:
 
 
 def _check_controller(spec: str) -> None:
-    from pianist.agents.specs import controller_from_spec as make_controller_from_spec
+    from pianist.control.registry import build_controller
 
-    make_controller_from_spec(spec)
+    build_controller(spec)
 
 
 def _run_play(cell: Cell, options: SweepOptions, folder: Path, work: Path) -> dict[str, Any]:
-    from pianist.agents.specs import controller_from_spec as make_controller_from_spec
+    from pianist.control.registry import build_controller
     from pianist.eval.session import play
     from pianist.media.results import MediaOptions, write_result
 
     result = play(
         cell.song,
-        make_controller_from_spec(cell.variant),
+        build_controller(cell.variant),
         physics=cell.physics,
         fingering=cast("Fingering", options.fingering),
         initial_buffer_s=options.initial_buffer_s,
@@ -207,25 +207,14 @@ def _check_run(run_dir: str) -> None:
 
 
 def _run_eval(cell: Cell, options: SweepOptions, folder: Path, work: Path) -> dict[str, Any]:
-    from pianist.agents import PolicyController
-    from pianist.agents.practice import CorrectedPlanner, is_practice_run
+    from pianist.agents.specs import load_run
     from pianist.eval.session import play
     from pianist.media.results import MediaOptions, write_result
 
+    controller, described = load_run(cell.variant)
     fingering = cast("Fingering", options.fingering)
-    if is_practice_run(cell.variant):
-        practised = CorrectedPlanner.load(cell.variant)
-        result = play(cell.song, practised, fingering=fingering, seed=cell.seed)
-        extra: dict[str, Any] = {"song": cell.song, "run": cell.variant, "preset": PRACTICE}
-    else:
-        controller = PolicyController(cell.variant)
-        result = play(cell.song, controller, fingering=fingering, seed=cell.seed)
-        extra = {
-            "song": cell.song,
-            "run": cell.variant,
-            "checkpoint_step": controller.step,
-            "preset": controller.config.preset,
-        }
+    result = play(cell.song, controller, fingering=fingering, seed=cell.seed)
+    extra: dict[str, Any] = {"song": cell.song, "run": cell.variant, **described}
     write_result(result, folder, MediaOptions(audio=False), extra_metrics=extra)
     return {**result.metrics, **extra}
 

@@ -15,7 +15,7 @@ of a second, and by default its forearms follow that plan's path: :data:`Forearm
 3. the planner's per-finger inverse kinematics turns the targets into joint commands.
 
 So a press is a decision (a class), not an average of joint angles: what behaviour cloning of
-joint angles could not learn (``docs/generalist.md``).
+joint angles could not learn (``docs/notes/2026-12-07-generalist-joint-angle-policy.md``).
 """
 
 from __future__ import annotations
@@ -180,7 +180,7 @@ Fingering = Literal["song", "plan"]
 #: ``"policy"``: to the policy's own slide targets. A policy trained deciding its slide
 #: played open-etude-12 at 0.766 one way and 0.741 the other (fast): its slide was what it
 #: imitated worst. The one shipped, trained along the plan, plays 0.777 and 0.531
-#: (``docs/generalist.md``).
+#: (``docs/notes/2026-12-07-generalist-history.md``).
 Forearm = Literal["plan", "policy"]
 
 

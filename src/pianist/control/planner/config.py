@@ -98,7 +98,8 @@ class PlannerConfig:
     """Frames a shift of the whole-piece plan may leave later than planned, so that the hand
     holds its keys longer and the next notes lose their first frames instead, when fewer of
     its due key-frames fall in the moving window so (:meth:`ForearmPlan.plan_commands`).
-    0: never. Open-etude-12 0.792 -> 0.804 fast, 0.786 -> 0.796 faithful (docs/planner.md)."""
+    0: never. Open-etude-12 0.792 -> 0.804 fast, 0.786 -> 0.796 faithful
+    (docs/notes/2026-12-07-planner-plans.md)."""
     shift_delay_cost: float = 0.5
     """Key-frames each frame of a shift's delay is charged besides those it loses: with none,
     a delay that saves one key-frame of a chord cost `c-major-chords` 0.005 F1 (a hand that
@@ -200,7 +201,8 @@ class PlannerConfig:
     whole-piece plan with the song's fingering. Rehearsing ``piece`` too costs 0.8 of an
     episode more per cold start for 0.001 F1 (open-etude-12 faithful 0.7823 -> 0.7835, fast
     0.7880 -> 0.7882, the debug suites the same; 0.004 in the paper's embodiment:
-    docs/planner.md); ``piece-song`` played no piece of open-etude-12 or the debug suites
+    docs/notes/2026-12-07-planner-plans.md);
+    ``piece-song`` played no piece of open-etude-12 or the debug suites
     best."""
     choose_plan: Literal["rehearsal", "playable"] = "rehearsal"
     """How ``best`` chooses: by playing each candidate through once on a copy of the
@@ -214,7 +216,7 @@ class PlannerConfig:
     environment to play back (:meth:`pianist.env.PianoEnv.play_tape`) while the performance
     follows them, instead of simulating them again: the same episode, bit for bit, without
     the performance's physics (a cold start 1.23x faster fast, 1.35x faithful, in the median
-    over open-etude-12: docs/planner.md)."""
+    over open-etude-12: docs/notes/2026-12-07-planner-plans.md)."""
     piece_plan_margin: float = 0.02
     """With ``choose_plan="playable"``, the share of the song's key-frames a later plan must
     add to be chosen (wide chords, jumps, a fingering the Shadow hand cannot span)."""

@@ -28,6 +28,7 @@ from pianist.control.coverage import Coverage, plan_coverage, plan_key_classes, 
 from pianist.control.hand_order import uncross_hands
 from pianist.control.hand_plan import Objective
 from pianist.control.hand_split import SplitCosts, split_hands
+from pianist.control.lookahead import LookAhead
 from pianist.control.planner.config import (
     ENV_OPTIONS,
     FINGERS_PER_HAND,
@@ -201,28 +202,26 @@ class IKPlanner(BaseController):
         the steps to come lose even if they score their plan F1, reaches what the best so
         far lost over the whole piece; of equals the first rehearsed wins.
         """
-        handle, start = self.handle, self.memory()
-        fork = handle.fork(seed)
-        state = fork.snapshot()
+        start = self.memory()
+        look = LookAhead(self.handle, seed)
+        state = look.snapshot()
         best: tuple[float, Any, Replay] | None = None
         rehearsed: list[tuple[Any, ...]] = []
         for name, promise, plan in sorted(plans, key=lambda p: -p[1].mean()):  # stable
             if any(_same_plan(plan, other) for other in rehearsed):
                 continue  # it would play exactly as that one
             rehearsed.append(plan)
-            fork.restore(state)
             self._restore(plan)
-            self.set_memory(start)
-            give_up = np.inf if best is None else f1_lost(best[0], handle.num_steps)
+            look.start(self, state, start)
+            give_up = np.inf if best is None else f1_lost(best[0], look.home.num_steps)
             # IKPlanner's own step: a subclass's (a recorder, a corrector) is not rehearsed.
             act = partial(IKPlanner.act, self, None)
-            f1, replay = rehearse(self, fork, give_up, act, promise)
+            f1, replay = rehearse(self, look.env, give_up, act, promise)
             self.rehearsed[name] = f1
             if replay is not None and (best is None or f1 > best[0]):
                 best = (f1, plan, replay)
         assert best is not None  # the first rehearsal is never given up
-        self.attach(handle)
-        self.set_memory(start)
+        look.back(self, start)
         self.finger_states[:] = 0
         self._replay = best[2]
         return best[1]

@@ -1,0 +1,143 @@
+"""The specs of the controller kinds that need no training: each kind's options as a frozen
+dataclass with the controller it builds (:mod:`pianist.control.registry` reads and writes
+their string form).
+
+This module imports no simulator: the controllers' own modules are imported by ``build``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, ClassVar, Literal
+
+from pianist.control.options import MPC_PRESETS, MPCOptions, RefineOptions, SearchOptions
+from pianist.control.registry import ControllerSpec
+
+if TYPE_CHECKING:
+    from pianist.control.base import Controller
+
+
+@dataclass(frozen=True)
+class PlannerSpec(ControllerSpec):
+    """The inverse-kinematics planner (:mod:`pianist.control.planner`; several times real
+    time)."""
+
+    kind: ClassVar[str] = "planner"
+    needs_fingering: ClassVar[bool] = True
+
+    def build(self) -> Controller:
+        from pianist.control.planner import IKPlanner
+
+        return IKPlanner()
+
+
+@dataclass(frozen=True)
+class RefineSpec(RefineOptions, ControllerSpec):
+    """The planner, each action refined by looking ahead with the physics
+    (:mod:`pianist.control.refine`; ~0.4-0.7x real time)."""
+
+    kind: ClassVar[str] = "refine"
+    needs_fingering: ClassVar[bool] = True
+
+    def build(self) -> Controller:
+        from pianist.control.refine import Refiner
+
+        return Refiner(options=self)
+
+
+@dataclass(frozen=True)
+class SearchSpec(SearchOptions, ControllerSpec):
+    """The planner (or, with base refine, the refiner), its execution settings chosen per
+    segment of music by playing each variant ahead with the physics
+    (:mod:`pianist.control.search`)."""
+
+    kind: ClassVar[str] = "search"
+    positional: ClassVar[str | None] = "base"
+    needs_fingering: ClassVar[bool] = True
+
+    base: Literal["planner", "refine"] = "planner"
+    """The controller searched over: the planner, or the refiner with its defaults."""
+
+    def __post_init__(self) -> None:
+        if self.base not in ("planner", "refine"):
+            raise ValueError(f"search runs over planner or refine, not {self.base!r}")
+        super().__post_init__()
+
+    def build(self) -> Controller:
+        from pianist.control.refine import Refiner
+        from pianist.control.search import SegmentSearch
+
+        options = SearchOptions(self.segment_steps, self.overlap_steps, self.variants)
+        return SegmentSearch(Refiner() if self.base == "refine" else None, options)
+
+
+@dataclass(frozen=True)
+class MPCSpec(MPCOptions, ControllerSpec):
+    """The paper's predictive-sampling MPC (:class:`pianist.control.mpc.PredictiveSampling`);
+    the defaults are the paper's (preset ``paper``)."""
+
+    kind: ClassVar[str] = "mpc"
+    presets: ClassVar[Mapping[str, Mapping[str, Any]]] = MPC_PRESETS
+
+    def build(self) -> Controller:
+        from pianist.control.mpc import PredictiveSampling
+
+        return PredictiveSampling(self)
+
+
+def refined(spec: ControllerSpec) -> ControllerSpec:
+    """``spec`` with the refiner in the planner's place (``pianist play --refine``): the
+    planner becomes ``refine``, a search runs over the refiner, refine stays as it is.
+
+    Raises:
+        ValueError: a kind that has no planner to refine.
+    """
+    if isinstance(spec, PlannerSpec):
+        return RefineSpec()
+    if isinstance(spec, SearchSpec):
+        return dataclasses.replace(spec, base="refine")
+    if isinstance(spec, RefineSpec):
+        return spec
+    raise ValueError(f"--refine refines the planner, not --controller {spec}")
+
+
+@dataclass(frozen=True)
+class RandomSpec(ControllerSpec):
+    """Uniform random actions in [-1, 1] from the episode's seed."""
+
+    kind: ClassVar[str] = "random"
+
+    def build(self) -> Controller:
+        from pianist.control.basic import RandomController
+
+        return RandomController()
+
+
+@dataclass(frozen=True)
+class ZeroSpec(ControllerSpec):
+    """Every actuator at the middle of its range, the pedal up."""
+
+    kind: ClassVar[str] = "zero"
+
+    def build(self) -> Controller:
+        from pianist.control.basic import ZeroController
+
+        return ZeroController()
+
+
+@dataclass(frozen=True)
+class ReplaySpec(ControllerSpec):
+    """Recorded actions played back (an ``actions.npy`` that ``pianist play`` wrote)."""
+
+    kind: ClassVar[str] = "replay"
+    path_field: ClassVar[str | None] = "actions"
+
+    actions: str = ""
+    """The .npy file of (T, A) actions."""
+
+    def build(self) -> Controller:
+        from pianist.control.basic import ReplayController
+
+        return ReplayController(self.actions)
