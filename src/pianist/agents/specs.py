@@ -27,6 +27,9 @@ class PolicySpec(ControllerSpec):
     run_dir: str = ""
     """The run folder."""
 
+    def uses_seed(self) -> bool:
+        return False  # a trained policy acts with its mean action; a practised piece replays
+
     def build(self) -> Controller:
         return load_run(self.run_dir)[0]
 
@@ -40,6 +43,9 @@ class BCSpec(ControllerSpec):
 
     dir: str = ""
     """The policy's folder."""
+
+    def uses_seed(self) -> bool:
+        return False
 
     def build(self) -> Controller:
         from pianist.agents.bc import BCController
@@ -57,6 +63,9 @@ class GeneralistSpec(ControllerSpec):
     forearm: Literal["plan", "policy"] | None = None
     """Where its forearms go: plan (along the plan's path), policy (its own slide targets);
     none: the policy's own choice (plan for the shipped one)."""
+
+    def uses_seed(self) -> bool:
+        return False
 
     def build(self) -> Controller:
         from pianist.agents.generalist import generalist_controller

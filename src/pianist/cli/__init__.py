@@ -43,7 +43,10 @@ Command = (
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``pianist`` console script; returns the exit status."""
-    command = tyro.cli(Command, args=argv, prog="pianist", description=__doc__.splitlines()[0])
+    try:
+        command = tyro.cli(Command, args=argv, prog="pianist", description=__doc__.splitlines()[0])
+    except BrokenPipeError:  # `pianist play --help | head`: the reader has gone
+        return _reader_gone()
     try:
         with warnings.catch_warnings():  # restores the library's warning display afterwards
             warnings.showwarning = _show_warning
@@ -52,10 +55,7 @@ def main(argv: list[str] | None = None) -> int:
         sys.stderr.write("pianist: interrupted\n")
         return 130
     except BrokenPipeError:
-        # The reader of the output has gone (`pianist songs | head`): nothing to say, and
-        # the interpreter must not fail again flushing stdout at exit.
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-        return 1
+        return _reader_gone()
     except Exception as exc:  # noqa: BLE001 - turned into one line below, or re-raised
         message = _expected_error(exc)
         if message is None:
@@ -63,6 +63,13 @@ def main(argv: list[str] | None = None) -> int:
         sys.stderr.write(f"pianist: error: {message}\n")
         return 1
     return 0
+
+
+def _reader_gone() -> int:
+    """The reader of the output has gone (`pianist songs | head`): nothing to say, and the
+    interpreter must not fail again flushing stdout at exit."""
+    os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+    return 1
 
 
 def _show_warning(

@@ -25,7 +25,8 @@ class BCTrain:
     """The policy's folder (an earlier policy there is replaced whole; a folder holding
     anything else is refused)."""
     root: Annotated[
-        Path | None, tyro.conf.arg(help_behavior_hint="(default: Minari's datasets folder)")
+        Path | None,
+        tyro.conf.arg(metavar="PATH", help_behavior_hint="(default: Minari's datasets folder)"),
     ] = None
     """Where datasets are stored."""
     dagger_rounds: int = 0
@@ -167,9 +168,12 @@ class BCEval:
 class BC:
     """Behaviour cloning and DAgger: one policy for many songs (train one, evaluate one)."""
 
-    command: tyro.conf.OmitSubcommandPrefixes[
-        Annotated[BCTrain, tyro.conf.subcommand("train")]
-        | Annotated[BCEval, tyro.conf.subcommand("eval")]
+    # OmitArgPrefixes: the subcommand's description is shown once, not again over its options.
+    command: tyro.conf.OmitArgPrefixes[
+        tyro.conf.OmitSubcommandPrefixes[
+            Annotated[BCTrain, tyro.conf.subcommand("train")]
+            | Annotated[BCEval, tyro.conf.subcommand("eval")]
+        ]
     ]
 
     def run(self) -> None:

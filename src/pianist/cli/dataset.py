@@ -12,11 +12,13 @@ from pianist.cli.common import CliError, check_seed, prepare_dir
 from pianist.cli.common import out as _out
 
 
-def _hint(text: str) -> Any:
-    return tyro.conf.arg(help_behavior_hint=text)
+def _hint(text: str, metavar: str | None = None) -> Any:
+    """The default shown in --help as ``text``; ``metavar``: the value's name (an optional
+    field's would show as ``{None}|TYPE``)."""
+    return tyro.conf.arg(help_behavior_hint=text, metavar=metavar)
 
 
-_ROOT_HINT = _hint("(default: $MINARI_DATASETS_PATH, else ~/.minari/datasets)")
+_ROOT_HINT = _hint("(default: $MINARI_DATASETS_PATH, else ~/.minari/datasets)", "PATH")
 
 
 @dataclass(frozen=True)
@@ -38,12 +40,13 @@ class Build:
     """planner, refine, mpc, random, zero, or policy:RUN_DIR (a trained policy)."""
     episodes: int = 1
     """Episodes per song (K)."""
-    out: Annotated[str | None, _hint("(default: pianist/<songs>-<controller>-v0)")] = None
+    out: Annotated[str | None, _hint("(default: pianist/<songs>-<controller>-v0)", "STR")] = None
     """The dataset id, (NAMESPACE/)NAME-vN, e.g. pianist/open-etude-12-planner-v0."""
     root: Annotated[Path | None, _ROOT_HINT] = None
     """Where datasets are stored (Minari's datasets folder)."""
     physics: Annotated[
-        Literal["faithful", "fast"] | None, _hint("(default: the controller's own, else faithful)")
+        Literal["faithful", "fast"] | None,
+        _hint("(default: the controller's own, else faithful)", "faithful|fast"),
     ] = None
     """Physics preset."""
     noise: float = 0.02
@@ -137,10 +140,13 @@ class Dataset:
     """Demonstration datasets in the Farama Minari format: build one, assemble one from a
     sweep, describe one."""
 
-    command: tyro.conf.OmitSubcommandPrefixes[
-        Annotated[Build, tyro.conf.subcommand("build")]
-        | Annotated[Assemble, tyro.conf.subcommand("assemble")]
-        | Annotated[DatasetInfo, tyro.conf.subcommand("info")]
+    # OmitArgPrefixes: the subcommand's description is shown once, not again over its options.
+    command: tyro.conf.OmitArgPrefixes[
+        tyro.conf.OmitSubcommandPrefixes[
+            Annotated[Build, tyro.conf.subcommand("build")]
+            | Annotated[Assemble, tyro.conf.subcommand("assemble")]
+            | Annotated[DatasetInfo, tyro.conf.subcommand("info")]
+        ]
     ]
 
     def run(self) -> None:

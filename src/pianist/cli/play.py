@@ -60,12 +60,23 @@ class Play:
     physics: Annotated[
         Literal["faithful", "fast"] | None,
         tyro.conf.arg(
-            help_behavior_hint="(default: faithful; a trained policy: the one its run evaluated in)"
+            metavar="faithful|fast",
+            help_behavior_hint=(
+                "(default: faithful; a trained policy: the one its run evaluated in)"
+            ),
         ),
     ] = None
     """Physics preset: faithful (the paper's simulation) or fast (cheaper contacts)."""
     seed: int = 0
     """Seed of the episode (environment and controller)."""
+    start: float = 0.0
+    """Play an excerpt from this many seconds into the song, from a silent start (the hands
+    at rest; notes already sounding there are struck again)."""
+    seconds: Annotated[
+        float | None,
+        tyro.conf.arg(metavar="FLOAT", help_behavior_hint="(default: to the song's end)"),
+    ] = None
+    """Play an excerpt this many seconds long (from --start)."""
     initial_buffer_s: float = 0.0
     """Seconds of silence before the song, for the hands to reach the first notes (the
     original's initial_buffer_time; 0, the benchmark's default, scores the cold start).
@@ -87,7 +98,9 @@ class Play:
     """Video frame height and width in pixels (even numbers)."""
     soundfont: Annotated[
         Path | None,
-        tyro.conf.arg(help_behavior_hint="(default: the General MIDI one pretty_midi ships)"),
+        tyro.conf.arg(
+            metavar="PATH", help_behavior_hint="(default: the General MIDI one pretty_midi ships)"
+        ),
     ] = None
     """An .sf2/.sf3 SoundFont for the audio."""
     audio: bool = True
@@ -101,6 +114,7 @@ class Play:
             # Offscreen rendering without a display; must be set before mujoco is imported.
             os.environ.setdefault("MUJOCO_GL", "egl")
         from pianist.control.specs import refined
+        from pianist.eval.rollout import realtime_text
         from pianist.media.results import MediaOptions, play_to_folder
         from pianist.music import load_song
 
@@ -156,6 +170,8 @@ class Play:
             initial_buffer_s=self.initial_buffer_s,
             seed=self.seed,
             progress=sys.stderr.isatty(),
+            start_s=self.start,
+            seconds=self.seconds,
         )
         metrics = result.metrics
         song_f1 = f"  song F1 {metrics['song_f1']:.3f}" if "song_f1" in metrics else ""
@@ -166,7 +182,8 @@ class Play:
         _out(
             f"{self.song}: precision {metrics['precision']:.3f}  recall {metrics['recall']:.3f}  "
             f"F1 {metrics['f1']:.3f}{ceiling_f1}{song_f1}  sustain F1 {metrics['sustain_f1']:.3f}  "
-            f"({metrics['steps']} steps, {metrics['realtime_factor']:.1f}x real time) -> {self.out}"
+            f"({metrics['steps']} steps, {realtime_text(metrics['realtime_factor'])} real time) "
+            f"-> {self.out}"
         )
         _out(_errors_line(metrics))
         _out(_f1_lost_line(metrics))

@@ -26,7 +26,9 @@ class Report:
     """Result folders (what `pianist play --out DIR` wrote)."""
     out: Annotated[
         Path | None,
-        tyro.conf.arg(help_behavior_hint="(default: DIR/report.html for one folder)"),
+        tyro.conf.arg(
+            metavar="PATH", help_behavior_hint="(default: DIR/report.html for one folder)"
+        ),
     ] = None
     """The HTML file to write; required for several folders."""
     title: str = ""

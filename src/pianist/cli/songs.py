@@ -79,7 +79,9 @@ class ImportPig:
     """The dataset folder (e.g. PianoFingeringDataset_v1.2, with FingeringFiles/ and List.csv)."""
     dest: Annotated[
         Path | None,
-        tyro.conf.arg(help_behavior_hint="(default: where songs are looked up, see above)"),
+        tyro.conf.arg(
+            metavar="PATH", help_behavior_hint="(default: where songs are looked up, see above)"
+        ),
     ] = None
     """Where to write the songs."""
     strict: bool = True

@@ -14,8 +14,10 @@ from pianist.cli.common import CliError, check_seed
 from pianist.cli.common import out as _out
 
 
-def _hint(text: str) -> Any:
-    return tyro.conf.arg(help_behavior_hint=text)
+def _hint(text: str, metavar: str | None = None) -> Any:
+    """The default shown in --help as ``text``; ``metavar``: the value's name (an optional
+    field's would show as ``{None}|TYPE``)."""
+    return tyro.conf.arg(help_behavior_hint=text, metavar=metavar)
 
 
 _OPTIONAL = _hint("(optional)")
@@ -57,9 +59,9 @@ class Sweep:
     """Seeds of the episodes (play, eval) or training runs (train)."""
     out: Path = Path("runs/sweep")
     """The sweep's folder (created; a rerun into it skips finished cells)."""
-    workers: Annotated[int | None, _hint("(default: this machine's cores)")] = None
+    workers: Annotated[int | None, _hint("(default: this machine's cores)", "INT")] = None
     """CPUs of the local Ray: cells run at once (with --cpus-per-cell 1)."""
-    address: Annotated[str | None, _OPTIONAL] = None
+    address: Annotated[str | None, _hint("(optional)", "HOST:PORT")] = None
     """A Ray cluster's address (HOST:PORT of `ray start --head`) instead of a local Ray."""
     cpus_per_cell: float = 1.0
     """CPUs each cell asks Ray for."""
@@ -73,7 +75,7 @@ class Sweep:
     """play: also write performance.wav and score.wav in each cell."""
     steps: int = 1_000_000
     """train: total environment steps of each run."""
-    minutes: Annotated[float | None, _OPTIONAL] = None
+    minutes: Annotated[float | None, _hint("(optional)", "FLOAT")] = None
     """train: wall-clock budget of each run."""
     noise: float = 0.02
     """dataset: std of the action noise of every seed but the first (0: none)."""
@@ -101,6 +103,8 @@ class Sweep:
         for seed in self.seeds:
             check_seed(seed, "--seeds")
         songs = songs_of(self.suite, self.songs, self.folder)
+        if len(self.seeds) > 1 and self.task == "play":
+            _note_seedless(variants, self.seeds)
         physics: tuple[str | None, ...] = self.physics or (None,)
         cells = expand(self.task, songs, variants, physics, self.seeds)
         if self.list_only:
@@ -161,6 +165,19 @@ class Sweep:
         from pianist.sweep.tasks import TASKS
 
         return [TASKS[self.task].default_variant]
+
+
+def _note_seedless(variants: list[str], seeds: tuple[int, ...]) -> None:
+    """Say which controllers play the same whatever the seed: their rows for the seeds will
+    be the same (a deterministic controller in a start the seed does not change)."""
+    from pianist.control.registry import parse_controller
+
+    same = [v for v in variants if not parse_controller(v).uses_seed()]
+    if same:
+        _out(
+            f"note: {', '.join(same)} play the same whatever the seed: the {len(seeds)} seeds "
+            "give the same rows for them"
+        )
 
 
 def _require_ray() -> None:

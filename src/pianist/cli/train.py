@@ -37,33 +37,42 @@ class Train:
     of steps), droq-paper-pipelined, sac, redq, fast, fast-utd2, residual, residual-windows."""
     steps: Annotated[
         int | None,
-        tyro.conf.arg(help_behavior_hint="(default: 1000000; when resuming, the run's own)"),
+        tyro.conf.arg(
+            metavar="INT", help_behavior_hint="(default: 1000000; when resuming, the run's own)"
+        ),
     ] = None
     """Total environment steps."""
-    minutes: Annotated[float | None, tyro.conf.arg(help_behavior_hint="(optional)")] = None
+    minutes: Annotated[
+        float | None, tyro.conf.arg(metavar="FLOAT", help_behavior_hint="(optional)")
+    ] = None
     """Wall-clock budget of this call: training stops at the end of the episode in which it
     runs out (after a checkpoint; the best evaluated policy is kept in OUT/best)."""
     out: Path = Path("runs/train")
     """Run directory (created if missing)."""
-    resume: Annotated[Path | None, tyro.conf.arg(help_behavior_hint="(optional)")] = None
+    resume: Annotated[
+        Path | None, tyro.conf.arg(metavar="PATH", help_behavior_hint="(optional)")
+    ] = None
     """Continue the run in this directory from its newest checkpoint."""
     passes: Annotated[
-        int | None, tyro.conf.arg(help_behavior_hint="(practice: default 20, or --minutes)")
+        int | None,
+        tyro.conf.arg(metavar="INT", help_behavior_hint="(practice: default 20, or --minutes)"),
     ] = None
     """--preset practice: the most passes over the piece (--minutes may stop it sooner; with
     --minutes and no --passes, as many as the minutes allow)."""
     physics: Annotated[
         Literal["faithful", "fast"] | None,
-        tyro.conf.arg(help_behavior_hint="(practice: default faithful)"),
+        tyro.conf.arg(metavar="faithful|fast", help_behavior_hint="(practice: default faithful)"),
     ] = None
     """--preset practice: the physics preset practised in (the piece is played in it later)."""
     eval_physics: Annotated[
         Literal["faithful", "fast"] | None,
-        tyro.conf.arg(help_behavior_hint="(default: the preset's)"),
+        tyro.conf.arg(metavar="faithful|fast", help_behavior_hint="(default: the preset's)"),
     ] = None
     """A soft actor-critic run's evaluations, which choose the policy kept in OUT/best, in
     this physics preset (the fast presets train on fast and evaluate on faithful)."""
-    workers: Annotated[int | None, tyro.conf.arg(help_behavior_hint="(practice: default 2)")] = None
+    workers: Annotated[
+        int | None, tyro.conf.arg(metavar="INT", help_behavior_hint="(practice: default 2)")
+    ] = None
     """--preset practice: passes played at once, one per process (2 on two cores)."""
     progress: bool = True
     """Show a progress bar with steps/s and the latest F1 (on a terminal only: a redrawn bar
@@ -231,12 +240,17 @@ class Eval:
     """A training run directory (from `pianist train`)."""
     song: tyro.conf.Positional[SongArg]
     """A built-in song name, a MIDI file, a PIG file or a score (MusicXML, Humdrum, ABC, MEI)."""
-    out: Annotated[Path | None, tyro.conf.arg(help_behavior_hint="(default: RUN_DIR/eval)")] = None
+    out: Annotated[
+        Path | None, tyro.conf.arg(metavar="PATH", help_behavior_hint="(default: RUN_DIR/eval)")
+    ] = None
     """Output directory."""
     seed: int = 0
+    """Seed of the episode (environment and policy)."""
     physics: Annotated[
         Literal["faithful", "fast"] | None,
-        tyro.conf.arg(help_behavior_hint="(default: the one the run evaluated in)"),
+        tyro.conf.arg(
+            metavar="faithful|fast", help_behavior_hint="(default: the one the run evaluated in)"
+        ),
     ] = None
     """Evaluate in this physics preset (the rest of its task unchanged): how a policy
     trained on the fast preset plays on the faithful one. Unless told, the one the run's

@@ -35,16 +35,22 @@ class View:
     physics: Annotated[
         Literal["faithful", "fast"] | None,
         tyro.conf.arg(
-            help_behavior_hint="(default: faithful; a trained policy: the one its run evaluated in)"
+            metavar="faithful|fast",
+            help_behavior_hint=(
+                "(default: faithful; a trained policy: the one its run evaluated in)"
+            ),
         ),
     ] = None
     """Physics preset: faithful (the paper's simulation) or fast (cheaper contacts)."""
     seed: int = 0
     """Seed of the episode (environment and controller)."""
+    start: float = 0.0
+    """Play an excerpt from this many seconds into the song, from a silent start."""
     seconds: Annotated[
-        float | None, tyro.conf.arg(help_behavior_hint="(default: the whole song)")
+        float | None,
+        tyro.conf.arg(metavar="FLOAT", help_behavior_hint="(default: to the song's end)"),
     ] = None
-    """Play only the song's first SECONDS."""
+    """Play only SECONDS of the song (from --start)."""
     realtime: bool = True
     """Pace the episode to the wall clock (--no-realtime: as fast as it plays)."""
 
@@ -55,9 +61,10 @@ class View:
         check_seed(self.seed)
         if self.seconds is not None and not (math.isfinite(self.seconds) and self.seconds > 0):
             raise CliError(f"--seconds must be > 0, not {self.seconds}")
+        if not (math.isfinite(self.start) and self.start >= 0):
+            raise CliError(f"--start must be >= 0 seconds, not {self.start}")
         from pianist.media.viewer import view
         from pianist.music import load_song
-        from pianist.music.transforms import window
 
         song = load_song(
             self.song,
@@ -65,8 +72,6 @@ class View:
             fingering=self.fingering,
             as_written=self.as_written,
         )
-        if self.seconds is not None and self.seconds < song.duration_s:
-            song = window(song, 0.0, self.seconds)
         controller = build_controller(self.controller)
         result, stats = view(
             song,
@@ -75,6 +80,8 @@ class View:
             physics=self.physics,
             fingering=self.fingering,
             seed=self.seed,
+            start_s=self.start,
+            seconds=self.seconds,
         )
         metrics = result.metrics
         stopped = "  window closed: scored up to there" if stats.closed else ""

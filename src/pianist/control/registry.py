@@ -78,6 +78,13 @@ class ControllerSpec:
         """The controller these options describe."""
         raise NotImplementedError(f"{type(self).__name__} does not build a controller")
 
+    def uses_seed(self) -> bool:
+        """Whether the episode's seed changes what this controller plays (in an environment
+        that does not randomise its start, the default): False for a deterministic one, so
+        that a sweep over seeds can say its rows will be the same. True unless a kind says
+        otherwise."""
+        return True
+
     def __str__(self) -> str:
         return format_controller(self)
 

@@ -27,6 +27,9 @@ class PlannerSpec(ControllerSpec):
     kind: ClassVar[str] = "planner"
     needs_fingering: ClassVar[bool] = True
 
+    def uses_seed(self) -> bool:
+        return False  # the plan and its execution are deterministic
+
     def build(self) -> Controller:
         from pianist.control.planner import IKPlanner
 
@@ -65,6 +68,9 @@ class SearchSpec(SearchOptions, ControllerSpec):
             raise ValueError(f"search runs over planner or refine, not {self.base!r}")
         super().__post_init__()
 
+    def uses_seed(self) -> bool:
+        return self.base == "refine"  # the refiner's perturbations are drawn from the seed
+
     def build(self) -> Controller:
         from pianist.control.refine import Refiner
         from pianist.control.search import SegmentSearch
@@ -80,6 +86,9 @@ class MPCSpec(MPCOptions, ControllerSpec):
 
     kind: ClassVar[str] = "mpc"
     presets: ClassVar[Mapping[str, Mapping[str, Any]]] = MPC_PRESETS
+
+    def uses_seed(self) -> bool:
+        return self.seed is None  # a fixed seed of its own overrides the episode's
 
     def build(self) -> Controller:
         from pianist.control.mpc import PredictiveSampling
@@ -121,6 +130,9 @@ class ZeroSpec(ControllerSpec):
 
     kind: ClassVar[str] = "zero"
 
+    def uses_seed(self) -> bool:
+        return False
+
     def build(self) -> Controller:
         from pianist.control.basic import ZeroController
 
@@ -136,6 +148,9 @@ class ReplaySpec(ControllerSpec):
 
     actions: str = ""
     """The .npy file of (T, A) actions."""
+
+    def uses_seed(self) -> bool:
+        return False
 
     def build(self) -> Controller:
         from pianist.control.basic import ReplayController

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import time
 from typing import TYPE_CHECKING, Any
 
@@ -26,19 +27,25 @@ def run_episode(
         controller: the controller (:class:`pianist.control.base.Controller`; only ``reset``
             and ``act`` are called here, :func:`pianist.eval.session.play` calls the rest).
         seed: passed to ``env.reset`` and to the controller.
-        progress: show a progress bar on stderr with the speed as a multiple of real time
-            (controller included).
+        progress: show a progress bar on stderr: "planning" while the controller is reset
+            (a planner makes its plan then), then the steps played and the speed as a
+            multiple of real time (controller included), to two significant figures.
     Returns:
         The :class:`Episode` record.
     """
     handle = control_handle(env)
     observation, _ = env.reset(seed=seed)
+    bar = _progress_bar(handle.num_steps) if progress else None
+    if bar is not None:
+        bar.set_description("planning")
+        bar.refresh()
     controller.reset(env, seed=seed)
+    if bar is not None:
+        bar.set_description("playing")
     actions, active, sustain, goal_keys, goal_sustain, rewards = [], [], [], [], [], []
     terms: dict[str, list[float]] = {}
     events: list[tuple[float, int, bool]] = []
     qpos = [handle.data.qpos.copy()]
-    bar = _progress_bar(handle.num_steps) if progress else None
     start = time.perf_counter()
     done = False
     while not done:
@@ -60,7 +67,7 @@ def run_episode(
             if bar.n % 20 == 0 or done:
                 elapsed = time.perf_counter() - start
                 simulated = bar.n * handle.control_timestep_s
-                bar.set_postfix_str(f"{simulated / max(elapsed, 1e-9):.1f}x real time")
+                bar.set_postfix_str(f"{realtime_text(simulated / max(elapsed, 1e-9))} real time")
     if bar is not None:
         bar.close()
     return Episode(
@@ -77,6 +84,13 @@ def run_episode(
         qpos=np.stack(qpos),
         lead_in_steps=handle.config.lead_in_steps,
     )
+
+
+def realtime_text(factor: float) -> str:
+    """A real-time factor to two significant figures: ``0.044x``, ``1.5x``, ``12x``."""
+    if not math.isfinite(factor):
+        return "inf x"
+    return f"{factor:.0f}x" if factor >= 10 else f"{float(f'{factor:.2g}'):g}x"
 
 
 def _progress_bar(total: int) -> Any:

@@ -25,6 +25,7 @@ from pianist.eval.episode import Episode
 from pianist.eval.errors import f1_lost_by_kind, note_errors
 from pianist.eval.rollout import run_episode
 from pianist.music import GoalFrames, Song, load_song
+from pianist.music.transforms import window
 
 if TYPE_CHECKING:
     from pianist.sim.scene import Scene
@@ -120,6 +121,8 @@ def play(
     progress: bool = False,
     record_observations: bool = False,
     check_scene: Callable[[Scene], None] | None = None,
+    start_s: float = 0.0,
+    seconds: float | None = None,
 ) -> PlayResult:
     """Play ``song`` once with ``controller`` and score it.
 
@@ -139,6 +142,10 @@ def play(
             ``extra["truncations"]``, (T,) bool (for demonstration datasets; off by default).
         check_scene: called with the scene once the environment is built, before the episode
             (to refuse media options the scene cannot render before a long episode).
+        start_s, seconds: play only the excerpt of the song from ``start_s`` for ``seconds``
+            (None: to its end), from a silent start (the hands at rest, the notes already
+            sounding at ``start_s`` struck again); its metrics and files are the excerpt's,
+            and metrics.json records ``excerpt_start_s`` and ``excerpt_seconds``.
     Raises:
         ValueError: a negative lead-in or seed, or options the controller cannot play with.
         MusicError: the song cannot be loaded.
@@ -149,6 +156,9 @@ def play(
         raise ValueError(f"the seed must be >= 0, not {seed}")
     if not isinstance(song, Song):
         song = load_song(song, fingering=fingering)
+    excerpt = start_s != 0.0 or seconds is not None
+    if excerpt:
+        song = excerpt_of(song, start_s, seconds)
     options: dict[str, Any] = {"physics": physics, **(env_options or {})}
     if initial_buffer_s:
         options["initial_buffer_s"] = initial_buffer_s
@@ -191,6 +201,8 @@ def play(
         wall_seconds=wall,
         realtime_factor=metrics["seconds"] / wall if wall > 0 else float("inf"),
     )
+    if excerpt:
+        metrics.update(excerpt_start_s=start_s, excerpt_seconds=song.duration_s)
     result = PlayResult(
         song=song,
         episode=episode,
@@ -204,6 +216,27 @@ def play(
     )
     env.close()
     return result
+
+
+def excerpt_of(song: Song, start_s: float, seconds: float | None) -> Song:
+    """The part of ``song`` from ``start_s`` for ``seconds`` (None: to its end), shifted to
+    start at 0 s (:func:`pianist.music.transforms.window`).
+
+    Raises:
+        ValueError: a negative or non-finite start, a length that is not > 0, or a start at
+            or past the song's end (the message gives its length).
+    """
+    if not (math.isfinite(start_s) and start_s >= 0):
+        raise ValueError(f"the excerpt's start must be >= 0 seconds, not {start_s}")
+    if seconds is not None and not (math.isfinite(seconds) and seconds > 0):
+        raise ValueError(f"the excerpt's length must be > 0 seconds, not {seconds}")
+    if start_s >= song.duration_s:
+        raise ValueError(
+            f"the excerpt starts at {start_s:g} s, past the end of {song.name} "
+            f"({song.duration_s:.2f} s long)"
+        )
+    end = song.duration_s if seconds is None else min(start_s + seconds, song.duration_s)
+    return window(song, start_s, end)
 
 
 class ObservationRecorder(gym.Wrapper):

@@ -11,6 +11,7 @@ an interrupted or failed write never leaves a mix of two runs (or half a run) in
 from __future__ import annotations
 
 import os
+import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -104,6 +105,14 @@ def check_output_folder(out: str | os.PathLike[str]) -> None:
     parent = out.parent if out.is_dir() else ancestor
     if not os.access(parent, os.W_OK | os.X_OK):
         raise MediaError(f"output directory {out} is not writable ({parent} is read-only)")
+    # Permissions do not tell everything (root may write anywhere, but not into /proc or a
+    # read-only mount): the results are written to a temporary folder there, so make one.
+    try:
+        tempfile.TemporaryDirectory(dir=parent, prefix=".pianist-check-").cleanup()
+    except OSError as exc:
+        raise MediaError(
+            f"output directory {out} cannot be written in {parent} ({exc.strerror or exc})"
+        ) from None
 
 
 def check_media_options(scene: Scene | None, media: MediaOptions) -> None:
