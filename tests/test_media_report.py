@@ -99,6 +99,21 @@ def test_play_report_shows_the_runs_metrics_media_and_notes(run_dir):
     assert rows["physics"] == "fast" and rows["controller"] == "planner" and rows["seed"] == "0"
     assert float(rows["real-time factor"]) == pytest.approx(metrics["realtime_factor"], rel=1e-3)
     assert "forearm_dofs" in rows["env_options"]  # every other entry of metrics.json is shown
+    # The page opens with the summary: what was played, how well, in words.
+    summary = {row[0]: row[1] for row in parsed.tables["summary"]}
+    assert list(parsed.tables)[0] == "summary" and len(parsed.tables["summary"]) <= 12
+    assert summary["song"] == metrics["song"] and summary["controller"] == "planner"
+    assert float(summary["F1"]) == pytest.approx(metrics["f1"], abs=5e-4)
+    assert "most these hands allow (F1)" in summary and "wall time" in summary
+    missed = (
+        len(parsed.tables["missed-notes"]) - 1
+        if parsed.tables["missed-notes"][0] != ["none"]
+        else 0
+    )
+    assert summary["in words"].startswith(f"Missed {missed} of {int(metrics['notes'])} notes")
+    # Every metric says what it means (a third cell), folded under "All metrics".
+    assert all(len(row) == 3 and row[2] for row in parsed.tables["metrics"])
+    assert page.index('class="summary"') < page.index("pianoroll.png") < page.index("<details")
     # Media by relative path, each a file of the folder.
     sounds = sorted(a["src"] for a in parsed.all("audio"))
     assert sounds == sorted(p.name for p in run_dir.glob("*.wav"))
@@ -294,6 +309,8 @@ def test_chromium_loads_the_page_and_finds_its_elements(run_dir, tmp_path):
     metrics = json.loads((run_dir / "metrics.json").read_text())
     rows = {row[0]: row[1] for row in dom.tables["metrics"]}
     assert float(rows["F1"]) == pytest.approx(metrics["f1"], abs=5e-4)
+    # The first table the browser shows is the summary, of at most 12 rows.
+    assert list(dom.tables)[0] == "summary" and 1 < len(dom.tables["summary"]) <= 12
     assert len(dom.all("audio")) == len(list(run_dir.glob("*.wav"))) >= 2
     assert all(a.get("controls") is not None for a in dom.all("audio"))
     assert "missed-notes" in dom.tables and "wrong-notes" in dom.tables

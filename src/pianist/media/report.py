@@ -38,8 +38,10 @@ from urllib.parse import quote
 
 import numpy as np
 
+from pianist.eval.rollout import realtime_text
 from pianist.files import write_bytes_atomic, write_text_atomic
 from pianist.media.errors import MediaError
+from pianist.media.metric_text import in_words, metric_text
 
 if TYPE_CHECKING:
     from pianist.eval.session import PlayResult
@@ -486,18 +488,14 @@ def _is_report(path: Path) -> bool:
 
 
 def _run_section(run: RunReport, page_folder: Path, index: int, several: bool) -> str:
+    """One run: the summary first, then the piano roll, the players and the video, the
+    song's provenance, every metric (folded) and the missed and wrong notes."""
     anchor = f"run-{index}"
     parts = [f'<section class="run" id="{anchor}">']
     if several:
         parts.append(f"<h2>{index}. {_e(run.name.name)}</h2>")
+    parts.append(_summary_table(run))
     parts.append(f'<p class="folder">Folder: <code>{_e(str(run.name))}</code></p>')
-    if run.provenance:
-        parts.append('<h3>Song</h3><dl class="provenance">')
-        for label, text in run.provenance:
-            parts.append(f"<dt>{_e(label)}</dt><dd>{_e(text)}</dd>")
-        parts.append("</dl>")
-    parts.append("<h3>Metrics</h3>")
-    parts.append(_metrics_table(run.metrics))
     if PIANOROLL in run.media:
         src = _src(run.folder / PIANOROLL, page_folder)
         parts.append(
@@ -524,6 +522,14 @@ def _run_section(run: RunReport, page_folder: Path, index: int, several: bool) -
             f'<h3>Video</h3><video controls preload="metadata" src="{src}"></video>'
             f"<p><code>{_e(name)}</code></p>"
         )
+    if run.provenance:
+        parts.append('<h3>Song</h3><dl class="provenance">')
+        for label, text in run.provenance:
+            parts.append(f"<dt>{_e(label)}</dt><dd>{_e(text)}</dd>")
+        parts.append("</dl>")
+    parts.append('<details class="all-metrics"><summary>All metrics</summary>')
+    parts.append(_metrics_table(run.metrics))
+    parts.append("</details>")
     if run.missed is None or run.wrong is None:
         parts.append(
             f'<p class="no-notes">No key record ({KEY_RECORD}) in this folder: it was written '
@@ -539,7 +545,43 @@ def _run_section(run: RunReport, page_folder: Path, index: int, several: bool) -
     return "\n".join(parts)
 
 
+def _summary_table(run: RunReport) -> str:
+    """The run at a glance (at most 12 rows): what was played, how well, against what these
+    hands allow, how long it took, and the result in words."""
+    m = run.metrics
+    rows: list[tuple[str, str, str]] = []
+
+    def add(key: str, label: str, text: str | None = None) -> None:
+        if key in m:
+            rows.append((key, label, text if text is not None else _format(m[key])))
+
+    add("song", "song")
+    add("controller", "controller")
+    add("physics", "physics")
+    if "excerpt_start_s" in m:
+        start, length = m["excerpt_start_s"], m.get("excerpt_seconds", 0.0)
+        rows.append(("excerpt", "excerpt", f"{_format(length)} s from {_format(start)} s"))
+    add("f1", "F1")
+    add("precision", "precision")
+    add("recall", "recall")
+    add("song_f1", "song-only F1")
+    add("reach_ceiling_f1", "most these hands allow (F1)")
+    if "wall_seconds" in m:
+        speed = m.get("realtime_factor")
+        how_fast = f" ({realtime_text(speed)} real time)" if isinstance(speed, int | float) else ""
+        rows.append(("wall_seconds", "wall time", f"{m['wall_seconds']:.1f} s{how_fast}"))
+    missed = None if run.missed is None else len(run.missed)
+    wrong = None if run.wrong is None else len(run.wrong)
+    rows.append(("in_words", "in words", in_words(m, missed, wrong)))
+    body = "".join(
+        f'<tr data-key="{_e(key)}"><th scope="row">{_e(label)}</th><td>{_e(text)}</td></tr>'
+        for key, label, text in rows
+    )
+    return f'<table class="summary"><tbody>{body}</tbody></table>'
+
+
 def _metrics_table(metrics: Mapping[str, Any]) -> str:
+    """Every entry of metrics.json: its label, its value and what it means."""
     rows = []
     for key, label in _METRIC_LABELS.items():
         if key in metrics:
@@ -547,7 +589,7 @@ def _metrics_table(metrics: Mapping[str, Any]) -> str:
     rows += [(key, key, value) for key, value in metrics.items() if key not in _METRIC_LABELS]
     body = "".join(
         f'<tr data-key="{_e(key)}"><th scope="row">{_e(label)}</th>'
-        f"<td>{_e(_format(value))}</td></tr>"
+        f'<td>{_e(_format(value))}</td><td class="meaning">{_e(metric_text(key))}</td></tr>'
         for key, label, value in rows
     )
     return f'<table class="metrics"><tbody>{body}</tbody></table>'
@@ -647,6 +689,9 @@ th, td { border: 1px solid #ccc; padding: 0.2em 0.6em; text-align: left; }
 th[scope=row] { background: #f4f4f4; font-weight: normal; }
 thead th { background: #e8eef6; }
 td { font-variant-numeric: tabular-nums; }
+td.meaning { color: #555; font-size: 0.9em; font-variant-numeric: normal; }
+table.summary th[scope=row] { min-width: 12em; }
+details.all-metrics > summary { cursor: pointer; font-weight: 600; margin: 1em 0 0.5em; }
 img.pianoroll, video { max-width: 100%; border: 1px solid #ccc; }
 .audio figure { margin: 0.5em 0; }
 .audio audio { width: 30em; max-width: 100%; }
