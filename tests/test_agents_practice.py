@@ -10,6 +10,7 @@ import pytest
 from pianist.agents.practice import (
     CorrectedPlanner,
     PracticeConfig,
+    _practice_pass,
     goal_fingerprint,
     load_practice,
     practise,
@@ -126,9 +127,34 @@ def test_with_no_pass_limit_the_budget_ends_the_practice():
     unlimited = dataclasses.replace(FAST, passes=None, plans=("best",))
     with pytest.raises(ValueError, match="wall-clock budget"):
         practise(SONG, unlimited)
-    # The budget is checked after each pass (the first always runs): it runs out at once.
+    # The first pass always runs; no pass starts with less time left than the planner
+    # takes to play the piece: here the budget is gone at once.
     result = practise(SONG, unlimited, stop_after_s=1e-3)
-    assert [row["pass"] for row in result.history] == [0, 1]
+    assert [row["pass"] for row in result.history] == [0]
+
+
+def test_a_pass_that_runs_into_the_budget_stops_looking_ahead_and_keeps_its_table():
+    first = practise(SONG, dataclasses.replace(FAST, passes=None, plans=("best",)), stop_after_s=0)
+    table, fingerprint = first.table, first.fingerprint  # the planner's: no corrections
+    options = dataclasses.replace(FAST, passes=1).options(1, 0)
+    past = time.time() - 1.0
+    new_table, metrics, refined = _practice_pass(
+        SONG, table, fingerprint, "fast", options, [0, 1, 0], "best", past
+    )
+    assert refined == 0.0  # no step looked ahead
+    np.testing.assert_allclose(new_table, table, atol=1e-6)  # the table played as it was
+    live, _, refined_live = _practice_pass(SONG, table, fingerprint, "fast", options, [0, 1, 0])
+    assert refined_live > 0 and not np.allclose(live, table, atol=1e-6)
+
+
+def test_practice_keeps_to_its_budget():
+    unlimited = dataclasses.replace(FAST, passes=None, plans=("best",))
+    started = time.perf_counter()
+    result = practise(SONG, unlimited, stop_after_s=6.0)
+    elapsed = time.perf_counter() - started
+    planner_s = result.history[0]["seconds"]
+    assert len(result.history) >= 2
+    assert elapsed <= 6.0 + planner_s + 1.0, (elapsed, planner_s)
 
 
 def test_train_minutes_without_passes_is_a_budget_not_the_default_passes(tmp_path, capsys):

@@ -257,13 +257,29 @@ class _PassRefiner(Refiner):
     """The refiner of one practice pass: its perturbations drawn from ``seed``, whatever the
     episode's seed."""
 
-    def __init__(self, planner: CorrectedPlanner, options: RefineOptions, seed: list[int]):
+    def __init__(
+        self,
+        planner: CorrectedPlanner,
+        options: RefineOptions,
+        seed: list[int],
+        deadline: float | None = None,
+    ):
         super().__init__(planner, options)
         self._seed = seed
+        self.deadline = deadline
+        """``time.time()`` from which the pass stops looking ahead: the rest of the piece is
+        played by the corrected planner alone (its table kept), so a pass ends soon after a
+        wall-clock budget runs out and keeps what it learned before."""
 
     def reset(self, env: gym.Env, seed: int | None = None) -> None:
         super().reset(env, seed)
         self.rng = np.random.default_rng(self._seed)
+
+    def act(self, observation: Any = None) -> np.ndarray:
+        if self.deadline is not None and time.time() >= self.deadline:
+            self._steps += 1  # a step played without refining
+            return self.planner.act(observation)
+        return super().act(observation)
 
 
 @dataclass
@@ -292,7 +308,10 @@ def practise(
     on_pass: Callable[[PracticeResult], None] | None = None,
 ) -> PracticeResult:
     """Practise ``song`` for ``config.passes`` passes or until ``stop_after_s`` seconds of
-    wall-clock time have passed (checked after each pass; the first always runs).
+    wall-clock time have passed: a pass that runs into the budget stops looking ahead there
+    and plays the rest of the piece with the table so far (what it learned before is kept),
+    and no pass starts with less time left than the planner takes to play the piece. The
+    first pass (the planner alone) always runs.
 
     Args:
         song: the piece, fingered (the planner needs a finger on every note).
@@ -310,6 +329,7 @@ def practise(
     if config.passes is None and stop_after_s is None:
         raise ValueError("practice with no limit on its passes needs a wall-clock budget")
     t0 = time.perf_counter()
+    deadline = None if stop_after_s is None else time.time() + stop_after_s
     pool = _pool(config.workers)
     try:
         if start is None:
@@ -323,7 +343,11 @@ def practise(
         elapsed0 = start.history[-1]["seconds"] if start is not None and start.history else 0.0
         first = result.history[-1]["pass"] + 1 if result.history else 1
         last = config.passes if config.passes is not None else sys.maxsize
+        # What playing the piece once without looking ahead takes (pass 0 played it so).
+        planner_s = time.perf_counter() - t0 if start is None else 0.0
         for index in range(first, last + 1):
+            if deadline is not None and deadline - time.time() < planner_s:
+                break  # a pass started now would end past the budget
             jobs = [
                 (
                     song,
@@ -333,6 +357,7 @@ def practise(
                     config.options(index, w),
                     [config.seed, index, w],
                     result.hand_planning,
+                    deadline,
                 )
                 for w in range(config.workers)
             ]
@@ -415,14 +440,16 @@ def _practice_pass(
     options: RefineOptions,
     seed: list[int],
     hand_planning: str = "best",
+    deadline: float | None = None,
 ) -> tuple[np.ndarray, dict[str, float], float]:
-    """One pass: the piece played by the refiner around the planner corrected by ``table``.
-    Returns the table that replays that performance, its metrics (f1, precision, recall) and
-    the share of steps the look-ahead changed."""
+    """One pass: the piece played by the refiner around the planner corrected by ``table``
+    (looking ahead until ``deadline``, a ``time.time()``; after it the corrected planner
+    alone). Returns the table that replays that performance, its metrics (f1, precision,
+    recall) and the share of steps the look-ahead changed."""
     from pianist.eval.session import play
 
     planner = CorrectedPlanner(table, fingerprint=fingerprint, hand_planning=hand_planning)
-    refiner = _PassRefiner(planner, options, seed)
+    refiner = _PassRefiner(planner, options, seed, deadline)
     played = play(song, refiner, physics=physics, seed=0)
     actions = np.asarray(played.episode.actions, dtype=np.float64)
     raw = np.stack([planner.raw_actions[t] for t in range(actions.shape[0])])

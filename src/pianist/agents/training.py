@@ -135,8 +135,9 @@ def train(
         resume: continue the run in ``out_dir`` from its newest checkpoint.
         progress: show a tqdm bar with steps/s and the latest F1.
         message: called with one-line notices (e.g. the step a run resumed from).
-        stop_after_s: stop (after a checkpoint) once this much wall time has passed in this
-            call; for time-budgeted benchmarks.
+        stop_after_s: stop once this much wall time has passed in this call, inside an
+            episode if need be (a checkpoint keeps what was learned; the last evaluation is
+            not repeated when there is one): ``pianist train --minutes``.
     """
     from tqdm import tqdm
 
@@ -158,6 +159,7 @@ def train(
         run.clock = run.rate_clock = started = time.perf_counter()
         run.rate_step = run.step
         _start_episode(run)
+        out_of_time = False
         while run.step < steps:
             n = min(config.steps_per_iteration, run.episode_end - env.step_index, steps - run.step)
             learning = run.step >= config.seed_steps and run.replay.transitions > 0
@@ -175,18 +177,18 @@ def train(
             if run.step - run.rate_step >= 1000:
                 steps_per_s = _log_rate(run, log)
                 bar.set_postfix(sps=f"{steps_per_s:.0f}", f1=run.last_eval.get("f1", math.nan))
+            out_of_time = stop_after_s is not None and time.perf_counter() - started >= stop_after_s
             if done:
                 _end_episode(run, log)
-                out_of_time = (
-                    stop_after_s is not None and time.perf_counter() - started >= stop_after_s
-                )
                 if out_of_time or _checkpoint_due(run):
                     _checkpoint(run, mid_episode=False)
                     if out_of_time:
                         break
                 if run.step < steps:
                     _start_episode(run)
-        if run.last_eval_step != run.step:
+            elif out_of_time:
+                break  # inside an episode: the checkpoint below keeps it
+        if run.last_eval_step != run.step and not (out_of_time and run.last_eval):
             _evaluate(run, log)
         if run.last_checkpoint_step != run.step or run.step == 0:
             _checkpoint(run, mid_episode=env.step_index not in (run.episode_start, run.episode_end))
