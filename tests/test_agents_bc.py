@@ -88,6 +88,7 @@ def test_a_tiny_dataset_trains_a_policy_that_plays_its_song(trained, capsys):
     assert saved["info"]["dataset"] == DATASET and saved["info"]["steps"] == 162
 
 
+@pytest.mark.slow
 def test_dagger_labels_are_the_planners_actions_in_the_states_the_policy_visits(trained):
     _, out = trained
     policy = bc.load_policy(out)

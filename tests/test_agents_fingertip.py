@@ -299,6 +299,7 @@ def test_a_policy_round_trips_and_bad_folders_are_refused(tmp_path):
         FingertipPolicy(wrong)
 
 
+@pytest.mark.slow
 def test_fitting_learns_the_experts_modes_and_training_runs_end_to_end():
     data = record([SONG], workers=1)
     policy = fit(data.x, data.y, FitConfig(steps=400), 400)

@@ -176,7 +176,8 @@ def test_list_prints_the_cells_without_running_them(tmp_path, capsys):
     out = tmp_path / "sweep"
     args = ["sweep", "--songs", SONG, "--controllers", "zero", "random", "--seeds", "0", "1"]
     assert main([*args, "--physics", "fast", "--out", str(out), "--list"]) == 0
-    lines = capsys.readouterr().out.splitlines()
+    note, *lines = capsys.readouterr().out.splitlines()
+    assert note.startswith("note: zero play the same whatever the seed")  # random does not
     assert lines[:2] == [f"{SONG}.zero.fast.s0  to run", f"{SONG}.zero.fast.s1  to run"]
     assert lines[-1] == f"4 cells -> {out}"
     assert not (out / CELLS_DIR).exists()
@@ -200,6 +201,7 @@ def test_a_ray_whose_internals_differ_falls_back_to_its_public_start(monkeypatch
     assert not ray.is_initialized()  # stopped at the end as before
 
 
+@pytest.mark.slow
 def test_play_sweep_writes_a_row_per_cell_reports_a_failed_cell_and_skips_finished_cells(
     tmp_path,
 ):
@@ -271,6 +273,7 @@ def test_play_sweep_writes_a_row_per_cell_reports_a_failed_cell_and_skips_finish
     assert any(line == "2 of 4 cells finished earlier: skipped" for line in lines)
 
 
+@pytest.mark.slow
 def test_a_worker_killed_mid_cell_is_retried_and_no_row_is_lost_or_doubled(tmp_path):
     """SIGKILL the worker of the first cell that starts (its pid is in running/<id>.json)."""
     out = tmp_path / "sweep"
@@ -312,6 +315,7 @@ def test_a_worker_killed_mid_cell_is_retried_and_no_row_is_lost_or_doubled(tmp_p
     assert "4 cells: 4 ok, 0 failed" in stdout
 
 
+@pytest.mark.slow
 def test_two_ray_nodes_on_this_machine_run_one_sweep(tmp_path):
     """A head and a second node joined to it (1 CPU each, their own temporary folders and
     token) run one sweep given --address; cells are spread over both."""
@@ -369,12 +373,12 @@ def test_practice_train_and_eval_cells(tmp_path):
     back with the F1 the practice reached."""
     out = tmp_path / "train"
     (cell,) = expand("train", [(SONG, "debug")], ["practice"], [None], [0])
-    # A budget this short stops after the first pass.
+    # A budget this short stops after the planner's own pass, pass 0.
     options = SweepOptions(minutes=1e-4).as_dict()
     record = execute_cell(cell.as_dict(), options, str(out))
     assert record["status"] == "ok", record["error"]
     (row,) = collect_rows(out, [cell])
-    assert row["passes"] == 1 and row["best_f1"] >= row["planner_f1"]
+    assert row["passes"] == 0 and row["best_f1"] == row["planner_f1"]
     run = out / CELLS_DIR / cell.id / "run"
     assert json.loads((run / "config.json").read_text())["kind"] == "practice"
 

@@ -135,9 +135,10 @@ def train(
         resume: continue the run in ``out_dir`` from its newest checkpoint.
         progress: show a tqdm bar with steps/s and the latest F1.
         message: called with one-line notices (e.g. the step a run resumed from).
-        stop_after_s: stop once this much wall time has passed in this call, inside an
-            episode if need be (a checkpoint keeps what was learned; the last evaluation is
-            not repeated when there is one): ``pianist train --minutes``.
+        stop_after_s: stop at the end of the episode in which this much wall time has passed
+            in this call (after a checkpoint; a resumed run then goes on exactly as an
+            uninterrupted one), without a last evaluation when the run has one:
+            ``pianist train --minutes``.
     """
     from tqdm import tqdm
 
@@ -177,17 +178,17 @@ def train(
             if run.step - run.rate_step >= 1000:
                 steps_per_s = _log_rate(run, log)
                 bar.set_postfix(sps=f"{steps_per_s:.0f}", f1=run.last_eval.get("f1", math.nan))
-            out_of_time = stop_after_s is not None and time.perf_counter() - started >= stop_after_s
             if done:
                 _end_episode(run, log)
+                out_of_time = (
+                    stop_after_s is not None and time.perf_counter() - started >= stop_after_s
+                )
                 if out_of_time or _checkpoint_due(run):
                     _checkpoint(run, mid_episode=False)
                     if out_of_time:
                         break
                 if run.step < steps:
                     _start_episode(run)
-            elif out_of_time:
-                break  # inside an episode: the checkpoint below keeps it
         if run.last_eval_step != run.step and not (out_of_time and run.last_eval):
             _evaluate(run, log)
         if run.last_checkpoint_step != run.step or run.step == 0:

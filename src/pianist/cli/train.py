@@ -45,8 +45,10 @@ class Train:
     minutes: Annotated[
         float | None, tyro.conf.arg(metavar="FLOAT", help_behavior_hint="(optional)")
     ] = None
-    """Wall-clock budget of this call: training stops at the end of the episode in which it
-    runs out (after a checkpoint; the best evaluated policy is kept in OUT/best)."""
+    """Wall-clock budget of this call. Practice: a pass that runs into it plays the rest of
+    the piece without looking ahead (what it learned is kept), and no pass starts that could
+    not end in time. A soft actor-critic run stops at the end of the episode in which it runs
+    out (after a checkpoint; the best evaluated policy is kept in OUT/best)."""
     out: Path = Path("runs/train")
     """Run directory (created if missing)."""
     resume: Annotated[

@@ -29,11 +29,14 @@ import ast
 import dataclasses
 import importlib
 import inspect
+import json
+import math
 import re
 import textwrap
 import types
 from collections.abc import Mapping
 from functools import cache
+from pathlib import Path
 from typing import TYPE_CHECKING, Any, ClassVar, Literal, Union, get_args, get_origin
 
 if TYPE_CHECKING:
@@ -96,6 +99,7 @@ def register(kind: str, target: str | type[ControllerSpec]) -> None:
         raise ValueError(f"a controller kind is a name of letters, digits, - and _, not {kind!r}")
     if isinstance(target, str):
         KINDS[kind] = target
+        _loaded.pop(kind, None)  # imported from there when next asked for
     else:
         KINDS[kind] = f"{target.__module__}:{target.__qualname__}"
         _loaded[kind] = target
@@ -190,7 +194,7 @@ def format_controller(spec: ControllerSpec) -> str:
     best: tuple[str | None, dict[str, Any]] = (None, defaults)
     for name, preset in cls.presets.items():
         base = {**defaults, **preset}
-        if _differing(values, base).__len__() < len(_differing(values, best[1])):
+        if len(_differing(values, base)) < len(_differing(values, best[1])):
             best = (name, base)
     items = [best[0]] if best[0] is not None else []
     for name in _differing(values, best[1]):
@@ -224,7 +228,7 @@ def controller_help(options_help: bool = False, width: int = 96) -> str:
     lines = []
     for kind in KINDS:
         cls = spec_class(kind)
-        summary = _plain(_first_sentence(inspect.getdoc(cls) or ""))
+        summary = _plain(_first_sentence(inspect.getdoc(cls) or "")) + _speed_text(kind)
         if cls.path_field is not None:
             lines.append(f"{kind}:{cls.path_field.upper()}: {summary}")
             continue
@@ -242,6 +246,55 @@ def controller_help(options_help: bool = False, width: int = 96) -> str:
         elif values:
             lines.append("  options: " + ", ".join(f"{name}={value}" for name, value in values))
     return "\n".join(lines)
+
+
+#: The measured speeds (``benchmarks/bench_speeds.py --write``), beside this module.
+SPEEDS_FILE = Path(__file__).with_name("speeds.json")
+
+
+@cache
+def measured_speeds() -> dict[str, Any]:
+    """``speeds.json``: per controller string, the median real-time factor per physics preset
+    (``kinds``), and when, where and on what it was measured; empty if it is missing."""
+    try:
+        speeds = json.loads(SPEEDS_FILE.read_text())
+    except (OSError, ValueError):
+        return {}
+    return speeds if isinstance(speeds, dict) else {}
+
+
+def speeds_table(speeds: dict[str, Any]) -> str:
+    """The README's table of the measured speeds (Markdown), from :func:`measured_speeds`."""
+    lines = [
+        "| controller | real time, faithful / fast (median; above 1x: faster than the music) |",
+        "|---|---|",
+    ]
+    for kind, row in speeds.get("kinds", {}).items():
+        faithful, fast = (row.get(p) for p in ("faithful", "fast"))
+        text = [realtime_text(x) if x is not None else "-" for x in (faithful, fast)]
+        lines.append(f"| `{kind}` | {text[0]} / {text[1]} |")
+    lines += [
+        "",
+        f"Measured by `python benchmarks/bench_speeds.py --write` on {speeds.get('date')} "
+        f"({speeds.get('machine')}; {speeds.get('what')}).",
+    ]
+    return "\n".join(lines)
+
+
+def _speed_text(kind: str) -> str:
+    """`` Measured: 7.2x real time faithful, 11x fast.`` for a kind in the speeds file."""
+    row = measured_speeds().get("kinds", {}).get(kind)
+    if not row:
+        return ""
+    parts = [f"{realtime_text(value)} {preset}" for preset, value in row.items()]
+    return f" Measured: {', '.join(parts)} (real time)."
+
+
+def realtime_text(factor: float) -> str:
+    """A real-time factor to two significant figures: ``0.044x``, ``1.5x``, ``12x``."""
+    if not math.isfinite(factor):
+        return "inf x"
+    return f"{factor:.0f}x" if factor >= 10 else f"{float(f'{factor:.2g}'):g}x"
 
 
 def _plain(text: str) -> str:

@@ -21,8 +21,7 @@ if TYPE_CHECKING:
 
 @dataclass(frozen=True)
 class PlannerSpec(ControllerSpec):
-    """The inverse-kinematics planner (:mod:`pianist.control.planner`; several times real
-    time)."""
+    """The inverse-kinematics planner (:mod:`pianist.control.planner`)."""
 
     kind: ClassVar[str] = "planner"
     needs_fingering: ClassVar[bool] = True
@@ -39,7 +38,7 @@ class PlannerSpec(ControllerSpec):
 @dataclass(frozen=True)
 class RefineSpec(RefineOptions, ControllerSpec):
     """The planner, each action refined by looking ahead with the physics
-    (:mod:`pianist.control.refine`; ~0.4-0.7x real time)."""
+    (:mod:`pianist.control.refine`)."""
 
     kind: ClassVar[str] = "refine"
     needs_fingering: ClassVar[bool] = True

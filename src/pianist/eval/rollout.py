@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-import math
 import time
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from pianist.control.registry import realtime_text
 from pianist.env.handle import control_handle
 from pianist.eval.episode import Episode
 
@@ -84,13 +84,6 @@ def run_episode(
         qpos=np.stack(qpos),
         lead_in_steps=handle.config.lead_in_steps,
     )
-
-
-def realtime_text(factor: float) -> str:
-    """A real-time factor to two significant figures: ``0.044x``, ``1.5x``, ``12x``."""
-    if not math.isfinite(factor):
-        return "inf x"
-    return f"{factor:.0f}x" if factor >= 10 else f"{float(f'{factor:.2g}'):g}x"
 
 
 def _progress_bar(total: int) -> Any:
