@@ -23,3 +23,18 @@ def _scratch_working_directory(tmp_path_factory: pytest.TempPathFactory) -> Iter
         yield scratch
     finally:
         os.chdir(before)
+
+
+def pytest_terminal_summary(terminalreporter: pytest.TerminalReporter, config: pytest.Config):
+    """Say that the slow end-to-end tests were left out, and how to run them: with pytest-xdist
+    the deselection happens in the workers, and the summary line would not show it."""
+    if config.getoption("markexpr") != "not slow":
+        return
+    slow = sum(
+        path.read_text().count("@pytest.mark.slow")
+        for path in Path(__file__).parent.glob("test_*.py")
+    )
+    terminalreporter.write_line(
+        f"{slow} slow end-to-end tests were left out (-m 'not slow'): run them with "
+        "`python -m pytest -m slow` (.ci/run does)"
+    )
