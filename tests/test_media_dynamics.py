@@ -94,3 +94,43 @@ def test_match_notes_pairs_same_pitch_while_due_one_to_one() -> None:
     assert metrics["velocity_mae"] == pytest.approx((10 + 10) / 2)  # score velocity 80
     empty = velocity_metrics(Song(notes=(), name="none"), score)
     assert empty["velocity_mae"] is None and empty["velocity_matched_notes"] == 0
+
+
+def test_rank_correlation_of_a_crescendo_played_in_order_reversed_and_flat() -> None:
+    from pianist.media.dynamics import rank_correlation
+
+    score = [40, 50, 60, 70, 80]
+    assert rank_correlation([30, 41, 55, 90, 100], score) == pytest.approx(1.0)
+    assert rank_correlation([100, 90, 55, 41, 30], score) == pytest.approx(-1.0)
+    assert rank_correlation([64, 64, 64, 64, 64], score) is None  # no order to compare
+    assert rank_correlation([1, 2], [3, 4]) is None  # too few notes
+    with pytest.raises(ValueError):
+        rank_correlation([1, 2, 3], [1, 2])
+
+
+def test_velocity_metrics_of_a_hand_made_pair_of_midi_files(tmp_path) -> None:
+    """A score with a crescendo, and a performance written as MIDI that plays its notes a
+    little late, softer at first and then louder: matched by pitch and onset, the error and
+    the rank correlation are the hand-computed ones."""
+    from pianist.music import load_song, write_midi
+
+    velocities = (40, 60, 80, 100)
+    played = (50, 55, 85, 110)
+    score = Song(
+        notes=tuple(Note(60 + 2 * i, 0.5 * i, 0.5 * i + 0.4, velocity=v)
+                    for i, v in enumerate(velocities)),
+        name="crescendo",
+    )  # fmt: skip
+    performance = Song(
+        notes=tuple(Note(60 + 2 * i, 0.5 * i + 0.03, 0.5 * i + 0.35, velocity=v)
+                    for i, v in enumerate(played)),
+        name="performance",
+    )  # fmt: skip
+    for song in (score, performance):
+        write_midi(song, tmp_path / f"{song.name}.mid")
+    read_score = load_song(str(tmp_path / "crescendo.mid"), fingering="none")
+    read_performance = load_song(str(tmp_path / "performance.mid"), fingering="none")
+    metrics = velocity_metrics(read_performance, read_score)
+    assert metrics["velocity_matched_notes"] == 4
+    assert metrics["velocity_mae"] == pytest.approx((10 + 5 + 5 + 10) / 4)
+    assert metrics["velocity_rank_correlation"] == pytest.approx(1.0)

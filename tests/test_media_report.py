@@ -119,7 +119,9 @@ def test_play_report_shows_the_runs_metrics_media_and_notes(run_dir):
     assert sounds == sorted(p.name for p in run_dir.glob("*.wav"))
     assert {"score.wav", "performance.wav"} <= set(sounds)
     assert [v["src"] for v in parsed.all("video")] == ["performance.mp4"]
-    assert [i["src"] for i in parsed.all("img")] == ["pianoroll.png"]
+    assert [i["src"] for i in parsed.all("img")] == ["pianoroll.png", "velocities.png"]
+    loudness = {row[0]: row[1] for row in parsed.tables["summary"]}["loudness against the score"]
+    assert f"off by {metrics['velocity_mae']:.1f} of 127" in loudness
     # The temporary folder the result was written in is never named.
     assert f"<code>{run_dir}</code>" in page and "/." + run_dir.name not in page
     # Provenance of a built-in song: its description.

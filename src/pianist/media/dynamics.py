@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -174,9 +175,32 @@ def match_notes(
 def velocity_metrics(performance: Song, score: Song) -> dict[str, float | int | None]:
     """velocity_mae: mean |performance velocity - score velocity| over the matched notes
     (:func:`match_notes`), MIDI velocity units, None when no note matched;
+    velocity_rank_correlation: Spearman's rank correlation of the performed velocities with
+    the score's over the matched notes (1: louder where the score is louder), None with fewer
+    than three matched notes or one velocity throughout either;
     velocity_matched_notes: how many matched; velocity_mean: the performance's mean velocity
     (None without notes)."""
     pairs = match_notes(performance, score)
     mae = float(np.mean([abs(p.velocity - s.velocity) for p, s in pairs])) if pairs else None
     mean = float(np.mean([n.velocity for n in performance.notes])) if performance.notes else None
-    return {"velocity_mae": mae, "velocity_matched_notes": len(pairs), "velocity_mean": mean}
+    return {
+        "velocity_mae": mae,
+        "velocity_rank_correlation": rank_correlation(
+            [p.velocity for p, _ in pairs], [s.velocity for _, s in pairs]
+        ),
+        "velocity_matched_notes": len(pairs),
+        "velocity_mean": mean,
+    }
+
+
+def rank_correlation(a: Sequence[float], b: Sequence[float]) -> float | None:
+    """Spearman's rank correlation of ``a`` and ``b`` (ties get their mean rank), or None
+    with fewer than three pairs or when either is constant (no ranking to compare)."""
+    if len(a) != len(b):
+        raise ValueError(f"rank correlation of {len(a)} against {len(b)} values")
+    if len(a) < 3 or np.ptp(a) == 0 or np.ptp(b) == 0:
+        return None
+    from scipy.stats import rankdata
+
+    ra, rb = rankdata(a), rankdata(b)
+    return float(np.corrcoef(ra, rb)[0, 1])

@@ -59,6 +59,9 @@ METRIC_TEXT: dict[str, str] = {
     "velocity_matched_notes": "Notes matched between the performance and the score for the "
     "loudness.",
     "velocity_mean": "The mean MIDI velocity the performance played.",
+    "velocity_rank_correlation": "Whether the performance is louder where the score is "
+    "louder: Spearman's rank correlation of the matched notes' velocities (1: the same order, "
+    "0: unrelated; none when either has one velocity throughout).",
     "as_written": "Whether a score was read as written (no repeats, ornaments or fermatas).",
     "excerpt_start_s": "Where the excerpt played starts in the song (s).",
     "excerpt_seconds": "How long the excerpt played is (s).",

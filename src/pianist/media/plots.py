@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import os
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -160,6 +160,49 @@ def plot_pianoroll(
     with atomic_path(path, suffix=".png", error=MediaError) as tmp:
         fig.savefig(tmp, format="png")
     return counts
+
+
+def plot_velocities(
+    performed: Sequence[int],
+    score: Sequence[int],
+    path: str | os.PathLike[str],
+    title: str = "",
+    *,
+    size_in: tuple[float, float] = (5.0, 5.0),
+    dpi: int = 100,
+) -> None:
+    """Draw each matched note's performed MIDI velocity against the score's (the diagonal:
+    played as written), with their mean absolute difference and rank correlation.
+
+    Raises:
+        MediaError: lengths that differ, or the file cannot be written.
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    from pianist.media.dynamics import rank_correlation
+
+    if len(performed) != len(score):
+        raise MediaError(f"{len(performed)} performed velocities against {len(score)} scored")
+    fig = Figure(figsize=size_in, dpi=dpi, layout="constrained")
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    ax.plot([0, 127], [0, 127], color="#999", linewidth=1, label="as written")
+    ax.scatter(score, performed, s=14, alpha=0.6, color="#2a7ab0", label="matched notes")
+    ax.set(xlim=(0, 127), ylim=(0, 127), xlabel="score velocity", ylabel="performed velocity")
+    ax.set_aspect("equal")
+    ax.legend(loc="upper left", fontsize="small")
+    rho = rank_correlation(performed, score)
+    mae = float(np.mean(np.abs(np.subtract(performed, score)))) if len(score) else float("nan")
+    rho_text = "n/a" if rho is None else f"{rho:.2f}"
+    ax.set_title(
+        f"{title}\n{len(score)} notes, mean |difference| {mae:.1f}, rank correlation {rho_text}"
+        if title
+        else f"{len(score)} notes, mean |difference| {mae:.1f}, rank correlation {rho_text}",
+        fontsize="small",
+    )
+    with atomic_path(path, suffix=".png", error=MediaError) as tmp:
+        fig.savefig(tmp, format="png")
 
 
 # --------------------------------------------------------------------------------- internals

@@ -50,6 +50,8 @@ REPORT = "report.html"
 KEY_RECORD = "keys.npz"
 METRICS = "metrics.json"
 PIANOROLL = "pianoroll.png"
+#: Performed against score velocities of the matched notes (when the episode has them).
+VELOCITIES = "velocities.png"
 LOWEST_PITCH = 21  # MIDI pitch of key 0 (A0)
 NUM_KEYS = 88
 #: A score note is missed when its key sounded in less than this fraction of its due steps.
@@ -336,7 +338,9 @@ def load_run(folder: str | os.PathLike[str]) -> RunReport:
         raise MediaError(f"{metrics_path}: not a metrics object")
     names = sorted(p.name for p in folder.iterdir() if p.is_file())
     media = tuple(
-        n for n in names if n.endswith(".wav") or n.endswith(_VIDEO_SUFFIXES) or n == PIANOROLL
+        n
+        for n in names
+        if n.endswith(".wav") or n.endswith(_VIDEO_SUFFIXES) or n in (PIANOROLL, VELOCITIES)
     )
     missed = wrong = None
     if (folder / KEY_RECORD).is_file():
@@ -522,6 +526,12 @@ def _run_section(run: RunReport, page_folder: Path, index: int, several: bool) -
             f'<h3>Video</h3><video controls preload="metadata" src="{src}"></video>'
             f"<p><code>{_e(name)}</code></p>"
         )
+    if VELOCITIES in run.media:
+        src = _src(run.folder / VELOCITIES, page_folder)
+        parts.append(
+            f'<h3>Loudness</h3><img class="velocities" src="{src}" alt="performed against '
+            'score velocity of each matched note">'
+        )
     if run.provenance:
         parts.append('<h3>Song</h3><dl class="provenance">')
         for label, text in run.provenance:
@@ -566,6 +576,16 @@ def _summary_table(run: RunReport) -> str:
     add("recall", "recall")
     add("song_f1", "song-only F1")
     add("reach_ceiling_f1", "most these hands allow (F1)")
+    if m.get("velocity_mae") is not None:
+        rho = m.get("velocity_rank_correlation")
+        order = "" if rho is None else f", rank correlation {rho:.2f}"
+        rows.append(
+            (
+                "velocity_mae",
+                "loudness against the score",
+                f"off by {m['velocity_mae']:.1f} of 127 on average{order}",
+            )
+        )
     if "wall_seconds" in m:
         speed = m.get("realtime_factor")
         how_fast = f" ({realtime_text(speed)} real time)" if isinstance(speed, int | float) else ""

@@ -24,7 +24,7 @@ from pianist.files import (
     write_json_atomic,
 )
 from pianist.media.errors import MediaError
-from pianist.media.report import KEY_RECORD, REPORT
+from pianist.media.report import KEY_RECORD, REPORT, VELOCITIES
 from pianist.music import write_midi
 from pianist.music.transforms import delay
 
@@ -54,6 +54,7 @@ RESULT_FILES = frozenset(
         VIDEO,
         KEY_RECORD,
         REPORT,
+        VELOCITIES,
     }
 )
 
@@ -191,7 +192,13 @@ def write_result(
     Raises:
         MediaError: the folder cannot be written, or a medium fails.
     """
-    from pianist.media.dynamics import episode_velocities, velocity_metrics, with_velocities
+    from pianist.media.dynamics import (
+        episode_velocities,
+        match_notes,
+        velocity_metrics,
+        with_velocities,
+    )
+    from pianist.media.plots import plot_velocities
     from pianist.media.report import key_record, write_key_record, write_report
 
     media = media or MediaOptions()
@@ -201,15 +208,24 @@ def write_result(
     metrics = dict(result.metrics)
     performance = episode.performance()
     velocities = None
+    matched = []
     if episode.qpos is not None:  # velocities come from the keys' recorded angles
         velocities = episode_velocities(episode, result.scene)
         performance = with_velocities(performance, episode.note_events, velocities)
         metrics.update(velocity_metrics(performance, _score(result)))
+        matched = match_notes(performance, _score(result))
     metrics.update(extra_metrics or {})
     with atomic_dir(out, error=MediaError) as tmp:
         save_npy_atomic(episode.actions, tmp / ACTIONS)
         write_midi(performance, tmp / PERFORMANCE_MIDI)
         _write_media(result, tmp, media, title, velocities)
+        if matched:
+            plot_velocities(
+                [p.velocity for p, _ in matched],
+                [s.velocity for _, s in matched],
+                tmp / VELOCITIES,
+                title or "",
+            )
         write_json_atomic(metrics, tmp / METRICS)
         write_key_record(key_record(result), tmp / KEY_RECORD)
         if media.report:  # last: the page lists the folder's files
