@@ -37,7 +37,8 @@ class Build:
     song files (MIDI, fingered automatically, PIG, or scores: MusicXML, Humdrum, ABC, MEI),
     or songs by name or file."""
     controller: str = "planner"
-    """planner, refine, mpc, random, zero, or policy:RUN_DIR (a trained policy)."""
+    """The demonstrator: any controller `pianist play` takes (`pianist play --help` lists
+    every kind with its options), e.g. planner, refine or policy:RUN_DIR."""
     episodes: int = 1
     """Episodes per song (K)."""
     out: Annotated[str | None, _hint("(default: pianist/<songs>-<controller>-v0)", "STR")] = None

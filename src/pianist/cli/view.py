@@ -24,8 +24,8 @@ class View:
     (MusicXML .musicxml, .mxl, .xml; Humdrum .krn; ABC .abc; MEI .mei: hands from its
     staves, its finger numbers; needs music21)."""
     controller: str = "planner"
-    """planner, mpc[:...], policy:RUN_DIR, random, zero or replay:ACTIONS.npy (as for `pianist
-    play`)."""
+    """Any controller `pianist play` takes, as KIND[:OPTION=VALUE,...] (`pianist play --help`
+    lists every kind with its options)."""
     fingering: Literal["auto", "file", "robot", "none"] = "auto"
     """How the song is fingered (as for `pianist play`)."""
     out_of_range: Literal["error", "drop"] = "error"
