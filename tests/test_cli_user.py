@@ -72,7 +72,9 @@ def test_help_piped_into_head_ends_quietly():
     ("factor", "text"),
     [
         (0.0443, "0.044x"),
-        (0.5, "0.5x"),
+        (0.5, "0.50x"),
+        (1.02, "1.0x"),
+        (9.0, "9.0x"),
         (1.54, "1.5x"),
         (9.96, "10x"),
         (11.2, "11x"),
@@ -140,7 +142,7 @@ def test_a_sweep_says_when_seeds_cannot_change_a_deterministic_controller(tmp_pa
     args = ["sweep", "--songs", "twinkle-twinkle", "--seeds", "0", "1", "--out", str(tmp_path)]
     assert main([*args, "--controllers", "planner", "refine", "--list"]) == 0
     out = capsys.readouterr().out
-    assert "note: planner play the same whatever the seed" in out
+    assert "note: the seed does not change what planner plays" in out
     assert "refine" not in out.split("note:")[1].splitlines()[0]
     assert main([*args, "--controllers", "random", "--list"]) == 0
     assert "note:" not in capsys.readouterr().out

@@ -81,18 +81,24 @@ def test_values_are_typed():
         ("planner9000", "unknown controller 'planner9000'; use planner"),
         ("refine:samples=3", "unknown refine option 'samples'; use candidates, horizon_steps"),
         ("refine:candidates=many", "refine option candidates needs a whole number, not 'many'"),
-        ("refine:sigma=loud", "refine option sigma needs a number"),
+        ("refine:sigma=loud", "refine option sigma needs a finite number"),
         ("refine:open_loop=maybe", "needs true or false"),
         ("refine:fast", "refine option 'fast' needs NAME=VALUE; options: candidates"),
         ("refine:", "nothing after the colon"),
         ("refine:horizon_steps=0", "horizon_steps >= 1"),
-        ("mpc:fancy", "or a preset .paper, tenth."),
+        ("mpc:fancy", "or, first, a preset .paper, tenth."),
         ("mpc:interpolation=bogus", "needs one of zero, linear, cubic, not 'bogus'"),
         ("search:mpc", "search option base needs one of planner, refine, not 'mpc'"),
         ("search:variants=plain+louder", "unknown search variants"),
         ("generalist:forearm=sideways", "needs one of plan, policy"),
-        ("planner:fast=1", "unknown planner option 'fast'; use "),
+        ("planner:fast=1", "planner takes no options"),
         ("policy:", "needs a path: policy:RUN_DIR"),
+        ("mpc:horizon_s=inf", "mpc option horizon_s needs a finite number, not 'inf'"),
+        ("refine:wrong_weight=nan", "needs a finite number"),
+        ("refine:sigma=1e400", "needs a finite number"),
+        ("refine:candidates=2,candidates=3", "refine option candidates is given twice"),
+        ("random:seed=1", "random takes no options: use random"),
+        ("mpc:iterations=1,tenth", "a preset .tenth. comes first"),
         ("replay: ", "needs a path: replay:ACTIONS"),
     ],
 )
@@ -135,7 +141,12 @@ def test_cli_help_of_controller_lists_the_registry(capsys):
     out = " ".join(capsys.readouterr().out.split())
     for kind in KINDS:
         assert kind in out
-    for option in ("horizon_steps=4", "segment_steps=10", "num_samples=10", "forearm=none"):
+    for option in (
+        "horizon_steps=4",
+        "segment_steps=10",
+        "num_samples=10",
+        "forearm=none(plan|policy)",
+    ):
         assert option in out.replace("│", "").replace(" ", "") or option in out
 
 

@@ -177,7 +177,7 @@ def test_list_prints_the_cells_without_running_them(tmp_path, capsys):
     args = ["sweep", "--songs", SONG, "--controllers", "zero", "random", "--seeds", "0", "1"]
     assert main([*args, "--physics", "fast", "--out", str(out), "--list"]) == 0
     note, *lines = capsys.readouterr().out.splitlines()
-    assert note.startswith("note: zero play the same whatever the seed")  # random does not
+    assert note.startswith("note: the seed does not change what zero plays")  # random does
     assert lines[:2] == [f"{SONG}.zero.fast.s0  to run", f"{SONG}.zero.fast.s1  to run"]
     assert lines[-1] == f"4 cells -> {out}"
     assert not (out / CELLS_DIR).exists()

@@ -220,8 +220,9 @@ class CorrectedPlanner(IKPlanner):
         handle = control_handle(env)
         if self.fingerprint is not None and not same_goal(handle.goal, self.fingerprint):
             raise ValueError(
-                "this correction table was practised on another piece (or the same piece "
-                "with another lead-in or fingering); practise this one with "
+                "this correction table was practised on another piece (or on the whole of "
+                "this one, not an excerpt, or with another lead-in or fingering): it plays "
+                "only the piece as practised; practise this one with "
                 "`pianist train SONG --preset practice`"
             )
         dims = handle.model.nu + 1  # the actuators and the pedal

@@ -175,8 +175,9 @@ def _note_seedless(variants: list[str], seeds: tuple[int, ...]) -> None:
     same = [v for v in variants if not parse_controller(v).uses_seed()]
     if same:
         _out(
-            f"note: {', '.join(same)} play the same whatever the seed: the {len(seeds)} seeds "
-            "give the same rows for them"
+            f"note: the seed does not change what {', '.join(same)} "
+            f"{'plays' if len(same) == 1 else 'play'}: the {len(seeds)} seeds give the same "
+            "rows there"
         )
 
 

@@ -199,10 +199,14 @@ class MPCOptions:
             raise ValueError(
                 f"unknown interpolation {self.interpolation!r}; use one of {INTERPOLATIONS}"
             )
-        if not self.planning_timestep_s > 0:
+        if not (self.planning_timestep_s > 0 and math.isfinite(self.planning_timestep_s)):
             raise ValueError(f"planning_timestep_s must be > 0, not {self.planning_timestep_s}")
         steps = self.horizon_s / self.planning_timestep_s
-        if not self.horizon_s > 0 or abs(steps - round(steps)) > 1e-6 or round(steps) < 1:
+        if (
+            not (self.horizon_s > 0 and math.isfinite(steps))
+            or abs(steps - round(steps)) > 1e-6
+            or round(steps) < 1
+        ):
             raise ValueError(
                 f"horizon_s {self.horizon_s} must be a positive multiple of "
                 f"planning_timestep_s {self.planning_timestep_s}"

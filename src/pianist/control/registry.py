@@ -165,20 +165,28 @@ def parse_controller(text: str | ControllerSpec) -> ControllerSpec:
     hints = _field_types(cls)
     values: dict[str, Any] = {}
     items = [item.strip() for item in rest.split(",") if item.strip()]
+    if items and not hints:
+        raise ValueError(f"{kind} takes no options: use {kind}")
     if items and "=" not in items[0] and items[0] in cls.presets:
         values.update(cls.presets[items.pop(0)])
+    given: set[str] = set()
     for item in items:
         name, sep, value = item.partition("=")
         name = name.strip().replace("-", "_")
         if not sep:
+            if item in cls.presets:
+                raise ValueError(f"{kind}: a preset ({item}) comes first, before the options")
             if cls.positional is None:
-                extra = f" or a preset ({', '.join(cls.presets)})" if cls.presets else ""
+                extra = f" or, first, a preset ({', '.join(cls.presets)})" if cls.presets else ""
                 raise ValueError(
                     f"{kind} option {item!r} needs NAME=VALUE{extra}; options: {', '.join(hints)}"
                 )
             name, value = cls.positional, item
         elif name not in hints:
             raise ValueError(f"unknown {kind} option {name!r}; use {', '.join(hints)}")
+        if name in given:
+            raise ValueError(f"{kind} option {name} is given twice")
+        given.add(name)
         values[name] = _parse_value(kind, name, hints[name], value.strip())
     return cls(**values)
 
@@ -236,8 +244,10 @@ def controller_help(options_help: bool = False, width: int = 96) -> str:
         lines.append(f"{kind}: {summary}{presets}")
         defaults = cls()
         docs = field_docs(cls)
+        hints = _field_types(cls)
         values = [
-            (f.name, _format_value(getattr(defaults, f.name))) for f in dataclasses.fields(cls)
+            (f.name, _format_value(getattr(defaults, f.name)) + _choices(hints[f.name]))
+            for f in dataclasses.fields(cls)
         ]
         if options_help:
             for name, value in values:
@@ -291,10 +301,23 @@ def _speed_text(kind: str) -> str:
 
 
 def realtime_text(factor: float) -> str:
-    """A real-time factor to two significant figures: ``0.044x``, ``1.5x``, ``12x``."""
+    """A real-time factor to two significant figures: ``0.044x``, ``0.50x``, ``1.0x``,
+    ``12x``."""
     if not math.isfinite(factor):
         return "inf x"
-    return f"{factor:.0f}x" if factor >= 10 else f"{float(f'{factor:.2g}'):g}x"
+    if factor >= 9.95:
+        return f"{factor:.0f}x"
+    return f"{factor:#.2g}".rstrip(".") + "x"
+
+
+def _choices(annotation: Any) -> str:
+    """`` (plan|policy)`` for a field whose values are a literal's names."""
+    origin, args = get_origin(annotation), get_args(annotation)
+    if origin in (Union, types.UnionType):
+        args = tuple(a for a in args if a is not type(None))
+        if len(args) == 1:
+            origin, args = get_origin(args[0]), get_args(args[0])
+    return f" ({'|'.join(map(str, args))})" if origin is Literal else ""
 
 
 def _plain(text: str) -> str:
@@ -386,13 +409,16 @@ def _parse_value(kind: str, name: str, annotation: Any, text: str) -> Any:
         if annotation is int:
             return int(text)
         if annotation is float:
-            return float(text)
+            number = float(text)
+            if not math.isfinite(number):
+                raise ValueError("a finite number")
+            return number
         if annotation is str:
             return text
     except ValueError as exc:
         wanted = str(exc) if origin is Literal or annotation is bool else annotation.__name__
         if annotation in (int, float):
-            wanted = "a whole number" if annotation is int else "a number"
+            wanted = "a whole number" if annotation is int else "a finite number"
         raise ValueError(f"{kind} option {name} needs {wanted}, not {text!r}") from None
     raise TypeError(f"{kind} option {name}: no string form for {annotation!r}")
 

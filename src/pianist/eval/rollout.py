@@ -36,9 +36,7 @@ def run_episode(
     handle = control_handle(env)
     observation, _ = env.reset(seed=seed)
     bar = _progress_bar(handle.num_steps) if progress else None
-    if bar is not None:
-        bar.set_description("planning")
-        bar.refresh()
+    start = time.perf_counter()  # the speed counts the planning, as metrics.json's does
     controller.reset(env, seed=seed)
     if bar is not None:
         bar.set_description("playing")
@@ -46,7 +44,6 @@ def run_episode(
     terms: dict[str, list[float]] = {}
     events: list[tuple[float, int, bool]] = []
     qpos = [handle.data.qpos.copy()]
-    start = time.perf_counter()
     done = False
     while not done:
         action = np.asarray(controller.act(observation), dtype=np.float32)
@@ -89,4 +86,4 @@ def run_episode(
 def _progress_bar(total: int) -> Any:
     from tqdm import tqdm
 
-    return tqdm(total=total, unit="step", desc="playing", leave=False, dynamic_ncols=True)
+    return tqdm(total=total, unit="step", desc="planning", leave=False, dynamic_ncols=True)

@@ -77,7 +77,8 @@ def resolve_env_options(controller: Controller, song: Song, **options: Any) -> d
         if key in chosen and _normalise(chosen[key]) != _normalise(value):
             name = type(controller).__name__
             raise ValueError(
-                f"{name} plays with {key}={value!r}; it cannot play with {key}={chosen[key]!r}"
+                f"this controller ({name}) plays with {key}={value!r} (its own), not "
+                f"{key}={chosen[key]!r}: leave out that choice"
             )
     return {**chosen, **declared}
 
@@ -202,7 +203,7 @@ def play(
         realtime_factor=metrics["seconds"] / wall if wall > 0 else float("inf"),
     )
     if excerpt:
-        metrics.update(excerpt_start_s=start_s, excerpt_seconds=song.duration_s)
+        metrics.update(excerpt_start_s=start_s, excerpt_seconds=round(song.duration_s, 6))
     result = PlayResult(
         song=song,
         episode=episode,

@@ -73,16 +73,31 @@ METRIC_TEXT: dict[str, str] = {
     "run": "The training run played.",
     "checkpoint_step": "The environment step of the checkpoint played.",
     "trained_physics": "The physics preset the run was trained in.",
+    "f1_lost_never": "F1 lost to notes that never sounded: what F1 would gain were they "
+    "alone put right.",
+    "f1_lost_late": "F1 lost to notes that sounded late.",
+    "f1_lost_dropout": "F1 lost to keys that came up too soon.",
+    "f1_lost_false": "F1 lost to keys sounding that were not due.",
+    "f1_lost_plan_left_out": "F1 lost to the keys the plan gives no finger (they overlap the "
+    "kinds above).",
+    "f1_lost_plan_in_shift": "F1 lost to the keys the plan lets go while a hand moves (they "
+    "overlap the kinds above).",
+    "mpc_steps": "Control steps the MPC planned.",
+    "mpc_iterations": "Planning iterations in all (the iterations option per step, times the "
+    "steps).",
+    "mpc_plan_seconds": "Wall seconds the MPC spent planning.",
+    "mpc_ms_per_step": "Milliseconds of planning per control step.",
+    "mpc_realtime_factor": "Seconds of music per second of planning (the paper's budget: 0.1).",
+    "mpc_rollout_steps_per_s": "Simulated rollout steps per second of planning.",
+    "mpc_rollout_fraction": "Share of the planning time spent simulating rollouts.",
 }
 
 #: Entry prefix -> what entries beginning with it mean ({} is the rest of the name).
 METRIC_PREFIX_TEXT: dict[str, str] = {
-    "rehearsed_f1_": "The F1 the planner's candidate plan '{}' scored when it rehearsed it "
-    "before playing; the best rehearsed plan is the one played, so the episode's F1 is that "
-    "plan's.",
-    "f1_lost_": "F1 lost to {} errors: what F1 would gain were they alone put right.",
+    "rehearsed_f1_": "The F1 the planner's candidate plan '{}' scored when the planner "
+    "played it through alone before the episode; it plays the best of them (a controller "
+    "built on the planner, such as refine or search, then changes what is played).",
     "search_share_": "Share of the steps the search played with the '{}' settings.",
-    "mpc_": "The MPC's {} (its own timing and counters).",
     "plan_": "The plan's {}.",
 }
 
