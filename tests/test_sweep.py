@@ -28,6 +28,10 @@ from pianist.sweep.cluster import local_cluster
 from pianist.sweep.table import RESULTS_CSV, RESULTS_JSON, SUMMARY_JSON, SUMMARY_PNG, collect_rows
 from pianist.sweep.tasks import CELL_RECORD, CELLS_DIR, RUNNING_DIR, execute_cell
 
+# Local Ray clusters: one worker of pytest-xdist runs them all, one at a time (two at once
+# would share this machine's Ray ports and session folders).
+pytestmark = pytest.mark.xdist_group("ray")
+
 SONG = "c-major-chords"
 SWEEP = [sys.executable, "-m", "pianist.cli", "sweep"]
 

@@ -1,9 +1,11 @@
 """Playing a song with a controller: the one path the CLI, evaluation and benchmarks share.
 
 :func:`make_env` builds the environment a controller plays in (the one place where a
-controller's declared environment options are applied); :func:`play` loads the song, plays
-one episode and collects the metrics. Writing a result's files is
-:func:`pianist.media.results.write_result`.
+controller's declared environment options are applied); :func:`play` loads the song (or an
+excerpt of it), builds that environment once, plays one episode and collects the metrics
+into a :class:`PlayResult`, data only. Writing a result's files is
+:func:`pianist.media.results.write_result`; :func:`pianist.media.results.play_to_folder` does
+both, as ``pianist play`` does.
 """
 
 from __future__ import annotations
@@ -148,7 +150,8 @@ def play(
             sounding at ``start_s`` struck again); its metrics and files are the excerpt's,
             and metrics.json records ``excerpt_start_s`` and ``excerpt_seconds``.
     Raises:
-        ValueError: a negative lead-in or seed, or options the controller cannot play with.
+        ValueError: a negative lead-in or seed, an excerpt outside the song, or options the
+            controller cannot play with.
         MusicError: the song cannot be loaded.
     """
     if not (math.isfinite(initial_buffer_s) and initial_buffer_s >= 0):
