@@ -226,3 +226,14 @@ def test_an_installed_package_declares_a_kind_by_entry_point(monkeypatch):
     finally:
         KINDS.pop("hold-test", None)
         registry._loaded.pop("hold-test", None)
+
+
+def test_a_broken_plugin_is_named_in_the_help_and_breaks_nothing_else(monkeypatch):
+    monkeypatch.setitem(KINDS, "broken-test", "no_such_module_here:Spec")
+    text = controller_help()
+    assert "broken-test: cannot be loaded" in text and "planner: " in text
+    with pytest.raises(ValueError, match="'broken-test' cannot be loaded from no_such_module"):
+        parse_controller("broken-test")
+    # An unknown kind is still named as such, the broken one listed among the kinds.
+    with pytest.raises(ValueError, match="unknown controller 'nope'; use planner"):
+        parse_controller("nope")

@@ -129,7 +129,8 @@ def spec_class(kind: str) -> type[ControllerSpec]:
     """The spec class of ``kind`` (its module imported on first use).
 
     Raises:
-        ValueError: an unknown kind, named with the kinds there are.
+        ValueError: an unknown kind, named with the kinds there are, or one whose spec
+            cannot be imported (a broken plugin).
     """
     if kind not in KINDS:
         _read_plugins()
@@ -137,7 +138,12 @@ def spec_class(kind: str) -> type[ControllerSpec]:
         raise ValueError(f"unknown controller {kind!r}; use {kinds_line()}")
     if kind not in _loaded:
         module, _, name = KINDS[kind].partition(":")
-        cls = getattr(importlib.import_module(module), name)
+        try:
+            cls = getattr(importlib.import_module(module), name)
+        except (ImportError, AttributeError) as exc:
+            raise ValueError(
+                f"controller kind {kind!r} cannot be loaded from {KINDS[kind]} ({exc})"
+            ) from None
         if not (isinstance(cls, type) and issubclass(cls, ControllerSpec)) or cls.kind != kind:
             raise TypeError(f"{KINDS[kind]} is not the ControllerSpec of kind {kind!r}")
         _loaded[kind] = cls
@@ -206,8 +212,8 @@ def format_controller(spec: ControllerSpec) -> str:
             best = (name, base)
     items = [best[0]] if best[0] is not None else []
     for name in _differing(values, best[1]):
-        if name == cls.positional:
-            items.insert(0, _format_value(values[name]))
+        if name == cls.positional:  # after the preset, which comes first
+            items.insert(1 if best[0] is not None else 0, _format_value(values[name]))
         else:
             items.append(f"{name}={_format_value(values[name])}")
     return cls.kind + (":" + ",".join(items) if items else "")
@@ -234,8 +240,12 @@ def controller_help(options_help: bool = False, width: int = 96) -> str:
     help."""
     _read_plugins()
     lines = []
-    for kind in KINDS:
-        cls = spec_class(kind)
+    for kind in list(KINDS):
+        try:
+            cls = spec_class(kind)
+        except (ValueError, TypeError) as exc:  # a plugin that is broken
+            lines.append(f"{kind}: cannot be loaded ({exc})")
+            continue
         summary = _plain(_first_sentence(inspect.getdoc(cls) or "")) + _speed_text(kind)
         if cls.path_field is not None:
             lines.append(f"{kind}:{cls.path_field.upper()}: {summary}")
@@ -368,7 +378,7 @@ def _path_form(kind: str) -> str | None:
     if cls is None:
         try:
             cls = spec_class(kind)
-        except (ImportError, TypeError):
+        except (ValueError, TypeError):  # a broken plugin: listed without its form
             return None
     return cls.path_field.upper() if cls.path_field else None
 
