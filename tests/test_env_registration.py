@@ -34,7 +34,8 @@ def test_register_envs_is_idempotent() -> None:
     before = {k for k in gym.registry if k.startswith("pianist/")}
     originals = [f"RoboPianist-debug-{s}-v0" for s in list_songs("robopianist-debug")]
     ids = register_envs()
-    assert ids == [f"pianist/{s}-v0" for s in _builtin()] + originals
+    dynamics = [f"pianist/{s}-dynamics-v0" for s in _builtin()]
+    assert ids == [f"pianist/{s}-v0" for s in _builtin()] + dynamics + originals
     assert {k for k in gym.registry if k.startswith("pianist/")} == before
 
 
@@ -100,3 +101,27 @@ def test_make_passes_options(kwargs: dict, check: Callable[..., bool]) -> None:
         assert env.observation_space.contains(obs)
     finally:
         env.close()
+
+
+def test_the_dynamics_variant_observes_the_scores_loudness_at_each_onset():
+    from gymnasium.utils.env_checker import check_env
+
+    from pianist.env.registration import dynamics_env_id
+    from pianist.music import Note, Song
+
+    song = Song(notes=(Note(60, 0.0, 0.3, velocity=32), Note(64, 0.1, 0.3, velocity=127)), name="d")
+    env = PianoEnv(song, physics="fast", lookahead=2, velocity_goal=True)
+    obs, _ = env.reset(seed=0)
+    velocity = obs["goal_velocity"]
+    assert velocity.shape == (3, 88) and env.observation_space["goal_velocity"].shape == (3, 88)
+    assert velocity[0, 60 - 21] == pytest.approx(32 / 127)  # C4 starts at frame 0
+    assert velocity[2, 64 - 21] == pytest.approx(1.0)  # E4 at frame 2
+    assert np.count_nonzero(velocity) == 2  # only where notes start
+    obs, *_ = env.step(np.zeros(env.action_space.shape, np.float32))
+    assert obs["goal_velocity"][1, 64 - 21] == pytest.approx(1.0)  # one frame nearer
+    check_env(PianoEnv(song, physics="fast", velocity_goal=True), skip_render_check=True)
+    # Off by default: the paper's observation.
+    assert "goal_velocity" not in PianoEnv(song, physics="fast").observation_space.spaces
+    made = gym.make(dynamics_env_id("twinkle-twinkle"), physics="fast")
+    assert "goal_velocity" in made.observation_space.spaces
+    made.close()

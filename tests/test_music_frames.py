@@ -172,3 +172,28 @@ def test_a_lead_in_prepends_silent_frames() -> None:
 def test_a_lead_in_needs_a_whole_number_of_frames(frames) -> None:
     with pytest.raises(ValueError, match="whole number of frames"):
         goal_frames(Song((Note(60, 0.0, 0.1),))).with_lead_in(frames)
+
+
+def test_goal_frames_keep_each_notes_velocity_and_where_it_starts():
+    from pianist.music.frames import DEFAULT_VELOCITY
+
+    notes = (
+        Note(60, 0.0, 0.2, velocity=30),
+        Note(60, 0.2, 0.4, velocity=90),  # re-struck: a free frame between the two
+        Note(64, 0.1, 0.4, velocity=127),
+    )
+    goal = goal_frames(Song(notes=notes, name="dynamics"), dt=0.05)
+    c4, e4 = 60 - 21, 64 - 21
+    due_c4 = np.flatnonzero(goal.keys[:, c4])
+    assert set(goal.velocities[due_c4, c4]) == {30, 90}
+    assert np.all(goal.velocities[~goal.keys] == 0)
+    assert np.flatnonzero(goal.onsets[:, c4]).tolist() == [0, 4]
+    assert np.flatnonzero(goal.onsets[:, e4]).tolist() == [2]
+    assert goal.velocities[2, e4] == 127 and goal.velocities[4, c4] == 90
+    lead = goal.with_lead_in(3)
+    assert np.array_equal(lead.velocities[3:], goal.velocities) and not lead.velocities[:3].any()
+    # Goal frames made without velocities: mezzo-forte wherever a key is due.
+    plain = GoalFrames(goal.keys, goal.sustain, goal.fingers, goal.dt)
+    assert np.all(plain.velocities[goal.keys] == DEFAULT_VELOCITY)
+    with pytest.raises(ValueError, match="1..127 where keys are due"):
+        GoalFrames(goal.keys, goal.sustain, goal.fingers, goal.dt, np.zeros_like(goal.velocities))

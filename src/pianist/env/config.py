@@ -54,6 +54,9 @@ class EnvConfig:
     """"assigned": each due key's labelled finger is pulled to it (the paper); "optimal": the
     fingertips are matched to the due keys by a minimum-distance assignment each step, so no
     fingering labels are needed (RP1M; facts page section 3)."""
+    velocity_goal: bool = False
+    """Also observe the loudness asked for: ``goal_velocity``, the MIDI velocity / 127 of each
+    note starting in the observed frames (off by default: the paper's task)."""
     scene: SceneOptions = field(default_factory=SceneOptions)
     rewards: RewardWeights = field(default_factory=RewardWeights)
 
@@ -104,6 +107,7 @@ def make_config(
     control_timestep_s: float = C.CONTROL_TIMESTEP_S,
     rewards: RewardWeights | None = None,
     fingering_reward: str = "assigned",
+    velocity_goal: bool = False,
 ) -> EnvConfig:
     """Flat keyword options -> :class:`EnvConfig` (what ``pianist.make_env`` accepts).
 
@@ -118,6 +122,7 @@ def make_config(
         "hand_collisions": hand_collisions,
         "wrong_press_termination": wrong_press_termination,
         "randomize_hand_positions": randomize_hand_positions,
+        "velocity_goal": velocity_goal,
     }
     for name, value in flags.items():
         if not isinstance(value, bool | np.bool_):
@@ -133,6 +138,7 @@ def make_config(
         randomize_hand_positions=randomize_hand_positions,
         initial_buffer_s=initial_buffer_s,
         fingering_reward=fingering_reward,
+        velocity_goal=velocity_goal,
         scene=SceneOptions(
             hands=hands,  # type: ignore[arg-type]
             physics="faithful" if physics is None else physics,

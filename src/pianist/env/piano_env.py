@@ -11,6 +11,8 @@ key                 shape         unit    meaning
                                           5-9 left thumb..little
 ``piano_keys``      (88,)         [0, 1]  key depression, 0 up, 1 at the bottom of travel
 ``piano_sustain``   (1,)          0/1     sustain pedal state
+``goal_velocity``   (L+1, 88)     [0, 1]  with ``velocity_goal`` only: MIDI velocity / 127 of
+                                          each note starting at frames t..t+L, 0 elsewhere
 ``rh_joints``       (23,)/(26,)   rad, m  right hand joint positions, forearm slides first
 ``lh_joints``       (23,)/(26,)   rad, m  the same for the left hand
 ``rh_fingertips``   (5, 3)        m       fingertip positions, thumb..little (world frame)
@@ -230,6 +232,10 @@ class PianoEnv(gym.Env):
         padded[:T, : C.NUM_KEYS] = goal.keys
         padded[:T, C.NUM_KEYS] = goal.sustain
         self._goal_padded = padded
+        # The loudness of each note at the frame it starts (velocity_goal), padded the same way.
+        onset_velocity = np.zeros((T + lookahead + 1, C.NUM_KEYS), dtype=np.float32)
+        onset_velocity[:T] = np.where(goal.onsets, goal.velocities / 127.0, 0.0)
+        self._velocity_padded = onset_velocity
         self._finger_mask = goal.finger_mask.astype(np.float32)
         # Per frame, computed once: the due keys, and (fingertip site, key site) pairs of the
         # fingered ones whose hand is in the scene (the others are not scored).
@@ -259,6 +265,8 @@ class PianoEnv(gym.Env):
             "piano_keys": gym.spaces.Box(*unit, shape=(C.NUM_KEYS,), dtype=f32),
             "piano_sustain": gym.spaces.Box(*unit, shape=(1,), dtype=f32),
         }
+        if self.config.velocity_goal:
+            spaces["goal_velocity"] = gym.spaces.Box(*unit, shape=(L + 1, C.NUM_KEYS), dtype=f32)
         for hand in self.scene.hands:
             p = HAND_OBS_PREFIX[hand.side]
             spaces[f"{p}_joints"] = gym.spaces.Box(
@@ -656,6 +664,8 @@ class PianoEnv(gym.Env):
             "piano_keys": self._key_state.astype(np.float32),
             "piano_sustain": np.array([float(self._sustain)], dtype=np.float32),
         }
+        if self.config.velocity_goal:
+            obs["goal_velocity"] = self._velocity_padded[t : t + L + 1].copy()
         for hand in self.scene.hands:
             p = HAND_OBS_PREFIX[hand.side]
             obs[f"{p}_joints"] = data.qpos[hand.joint_qpos].astype(np.float32)

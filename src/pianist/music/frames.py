@@ -14,7 +14,8 @@ Frame rule (RoboPianist's, see the facts page section 4), with ``fps = 1 / dt``:
   and the new note starts two frames later instead (and may vanish past the end).
 - Pedal intervals cover frames the same way (no release frame is inserted for the pedal).
 - ``fingers[t, key]`` is the finger (0..9) of the note covering ``key`` at ``t``, -1 if the key
-  is not due or the note has no finger label.
+  is not due or the note has no finger label; ``velocities[t, key]`` its MIDI velocity (1..127),
+  0 where the key is not due.
 """
 
 from __future__ import annotations
@@ -29,6 +30,8 @@ from pianist.music.pitch import NUM_KEYS
 
 #: Default control step of RoboPianist (20 Hz), seconds.
 DEFAULT_DT = 0.05
+#: MIDI's default velocity (mezzo-forte): what a due key's velocity is when none is given.
+DEFAULT_VELOCITY = 80
 # Tolerance digits for time * fps before floor/ceil: absorbs binary floating-point error.
 _ROUND_DIGITS = 9
 
@@ -49,14 +52,21 @@ class GoalFrames:
         fingers: (T, 88) int8, finger 0..9 due on key k at frame t, -1 for none; only set where
             ``keys`` is True.
         dt: control step in seconds (> 0); frame t starts at t * dt.
+        velocities: (T, 88) uint8, the MIDI velocity (1..127) of the note due on key k at
+            frame t, 0 where none is due; not given (empty): 80 (mezzo-forte, MIDI's default)
+            wherever a key is due.
         finger_mask: (T, 10) bool, computed: finger f is due at frame t.
+        onsets: (T, 88) bool, computed: key k's note starts at frame t (due there and not
+            at t - 1; the re-strike rule leaves a free frame between two notes of a key).
     """
 
     keys: np.ndarray
     sustain: np.ndarray
     fingers: np.ndarray
     dt: float
+    velocities: np.ndarray = field(default_factory=lambda: np.zeros((0, NUM_KEYS), np.uint8))
     finger_mask: np.ndarray = field(init=False, repr=False)
+    onsets: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         keys = np.asarray(self.keys)
@@ -84,14 +94,27 @@ class GoalFrames:
         dt = float(self.dt)
         if not (math.isfinite(dt) and dt > 0):
             raise ValueError(f"dt must be a finite number of seconds > 0, got {self.dt!r}")
+        velocities = np.asarray(self.velocities)
+        if velocities.size == 0:  # not given
+            velocities = np.where(keys, DEFAULT_VELOCITY, 0).astype(np.uint8)
+        if velocities.dtype != np.uint8 or velocities.shape != keys.shape:
+            raise ValueError(
+                f"velocities must be a {keys.shape} uint8 array, got {velocities.shape} "
+                f"{velocities.dtype}"
+            )
+        if np.any(velocities[~keys] != 0) or np.any(velocities[keys] == 0):
+            raise ValueError("velocities must be 1..127 where keys are due and 0 elsewhere")
         mask = np.zeros((num_frames, NUM_FINGERS), dtype=bool)
         rows, cols = np.nonzero(fingers >= 0)
         mask[rows, fingers[rows, cols]] = True
+        onsets = keys & ~np.vstack([np.zeros((1, NUM_KEYS), dtype=bool), keys[:-1]])
         object.__setattr__(self, "keys", _frozen(keys))
         object.__setattr__(self, "sustain", _frozen(sustain))
         object.__setattr__(self, "fingers", _frozen(fingers))
         object.__setattr__(self, "dt", dt)
+        object.__setattr__(self, "velocities", _frozen(velocities))
         object.__setattr__(self, "finger_mask", _frozen(mask))
+        object.__setattr__(self, "onsets", _frozen(onsets))
 
     @property
     def num_frames(self) -> int:
@@ -141,6 +164,7 @@ class GoalFrames:
             sustain=np.concatenate([np.zeros(frames, dtype=bool), self.sustain]),
             fingers=np.concatenate([np.full((frames, NUM_KEYS), -1, np.int8), self.fingers]),
             dt=self.dt,
+            velocities=np.concatenate([np.zeros((frames, NUM_KEYS), np.uint8), self.velocities]),
         )
 
 
@@ -185,14 +209,16 @@ def goal_frames(song: Song, dt: float = DEFAULT_DT) -> GoalFrames:
 
     keys = np.zeros((num_frames, NUM_KEYS), dtype=bool)
     fingers = np.full((num_frames, NUM_KEYS), -1, dtype=np.int8)
+    velocities = np.zeros((num_frames, NUM_KEYS), dtype=np.uint8)
     for note, (first, end) in zip(song.notes, spans, strict=True):
         if first > last:
             continue  # pushed past the end by the re-strike rule
         end = min(end, last)
         keys[first : end + 1, note.key] = True
         fingers[first : end + 1, note.key] = -1 if note.finger is None else note.finger
+        velocities[first : end + 1, note.key] = min(max(int(note.velocity), 1), 127)
 
     sustain = np.zeros(num_frames, dtype=bool)
     for start_s, end_s in song.sustain:
         sustain[_first_frame(start_s, fps) : min(_last_frame(end_s, fps), last) + 1] = True
-    return GoalFrames(keys=keys, sustain=sustain, fingers=fingers, dt=dt)
+    return GoalFrames(keys=keys, sustain=sustain, fingers=fingers, dt=dt, velocities=velocities)
