@@ -146,3 +146,16 @@ def test_a_sweep_says_when_seeds_cannot_change_a_deterministic_controller(tmp_pa
     assert "refine" not in out.split("note:")[1].splitlines()[0]
     assert main([*args, "--controllers", "random", "--list"]) == 0
     assert "note:" not in capsys.readouterr().out
+
+
+def test_a_comparison_page_shows_which_run_is_an_excerpt(tmp_path, capsys):
+    whole, part = tmp_path / "whole", tmp_path / "part"
+    base = ["play", "twinkle-twinkle", "--physics", "fast", "--no-audio"]
+    assert main([*base, "--out", str(whole)]) == 0
+    assert main([*base, "--start", "1", "--seconds", "2", "--out", str(part)]) == 0
+    page = tmp_path / "cmp.html"
+    assert main(["report", str(whole), str(part), "--out", str(page)]) == 0
+    text = page.read_text()
+    row = text.split('data-key="excerpt_start_s"')[1].split("</tr>")[0]
+    assert "excerpt from (s)" in row and "<td>-</td>" in row and "<td>1</td>" in row
+    capsys.readouterr()

@@ -79,6 +79,8 @@ _METRIC_LABELS = {
     "sustain_recall": "sustain recall",
     "sustain_f1": "sustain F1",
     "steps": "steps",
+    "excerpt_start_s": "excerpt from (s)",
+    "excerpt_seconds": "excerpt length (s)",
     "seconds": "simulated seconds",
     "realtime_factor": "real-time factor",
     "wall_seconds": "wall seconds",
@@ -98,7 +100,16 @@ _COMPARED = (
     "sustain_f1",
     "realtime_factor",
 )
-_COMPARED_INFO = ("song", "controller", "physics", "fingering", "seed", "steps")
+_COMPARED_INFO = (
+    "song",
+    "excerpt_start_s",
+    "excerpt_seconds",
+    "controller",
+    "physics",
+    "fingering",
+    "seed",
+    "steps",
+)
 
 
 @dataclass(frozen=True)
