@@ -159,3 +159,10 @@ def test_a_comparison_page_shows_which_run_is_an_excerpt(tmp_path, capsys):
     row = text.split('data-key="excerpt_start_s"')[1].split("</tr>")[0]
     assert "excerpt from (s)" in row and "<td>-</td>" in row and "<td>1</td>" in row
     capsys.readouterr()
+
+
+def test_a_sweep_folder_that_cannot_be_made_is_one_line(capsys):
+    args = ["sweep", "--songs", "twinkle-twinkle", "--controllers", "zero", "--out", "/proc/x"]
+    assert main(args) == 1
+    err = capsys.readouterr().err
+    assert "the sweep's folder /proc/x cannot be made" in err and err.count("\n") == 1

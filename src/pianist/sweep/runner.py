@@ -156,8 +156,9 @@ def run_sweep(
     Returns:
         The report; its rows are the table written.
     Raises:
-        ValueError: a bad grid or option (before Ray starts), or cells whose folders the
-            driver cannot see (``out`` not shared by the cluster's nodes).
+        ValueError: a bad grid or option or an ``out`` that cannot be made (before Ray
+            starts), or cells whose folders the driver cannot see (``out`` not shared by the
+            cluster's nodes).
     """
     options = options or SweepOptions()
     out = Path(out)
@@ -180,7 +181,12 @@ def run_sweep(
     check_grid(cells)
     if address is not None:
         check_reachable(address)  # before anything is written, and in seconds, not minutes
-    out.mkdir(parents=True, exist_ok=True)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ValueError(
+            f"the sweep's folder {out} cannot be made ({exc.strerror or exc})"
+        ) from None
     _check_folder(out, cells)
     write_json_atomic(
         {
