@@ -152,7 +152,7 @@ def _recorded_env_options(metrics_path: Path) -> dict[str, Any]:
     return {k: tuple(v) if isinstance(v, list) else v for k, v in options.items()}
 
 
-def make_controller(spec: str, **kwargs: Any) -> Controller:
+def make_controller(spec: str) -> Controller:
     """The controller a spec string names (:func:`pianist.control.registry.build_controller`:
     ``planner``, ``refine[:FIELD=VALUE,...]``, ``search[:refine,FIELD=VALUE,...]``,
     ``mpc[:PRESET,...]``, ``random``, ``zero``, ``replay:PATH.npy`` and the learned kinds)."""

@@ -168,7 +168,8 @@ class SegmentSearch(BaseController):
             due, active = goal[step], info["active_keys"]
             loss[j] = step_f1_loss(due, active)
             missed, wrong = step_misses(due, active)
-            tip_y = self.look.tip_y(self.tip_sites)
+            # The fingertips are read only when a wrong key needs its nearest one.
+            tip_y = self.look.tip_y(self.tip_sites) if wrong.size else key_y[:0]
             by_plan, by_tip = blame(missed, wrong, fingers[step], key_y, tip_y, self.tip_fingers)
             np.add.at(cost, self.finger_hand[by_plan], 1.0)
             np.add.at(cost, self.finger_hand[by_tip], 1.0)
