@@ -123,6 +123,7 @@ def train(
     progress: bool = True,
     message: Callable[[str], None] | None = None,
     stop_after_s: float | None = None,
+    budget_from: float | None = None,
 ) -> TrainResult:
     """Train an agent on ``song`` for ``steps`` environment steps in total.
 
@@ -139,6 +140,9 @@ def train(
             in this call (after a checkpoint; a resumed run then goes on exactly as an
             uninterrupted one), without a last evaluation when the run has one:
             ``pianist train --minutes``.
+        budget_from: the ``time.perf_counter()`` the budget counts from (default: when the
+            training loop starts, after the setup; ``pianist train`` gives its own start, so
+            that importing JAX and compiling count too).
     """
     from tqdm import tqdm
 
@@ -158,6 +162,8 @@ def train(
     bar = tqdm(total=steps, initial=run.step, unit="step", dynamic_ncols=True, disable=not progress)
     with RunLog(out) as log, bar:
         run.clock = run.rate_clock = started = time.perf_counter()
+        if budget_from is not None:
+            started = budget_from
         run.rate_step = run.step
         _start_episode(run)
         out_of_time = False

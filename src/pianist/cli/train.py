@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import sys
+import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated, Any, Literal
@@ -81,6 +82,7 @@ class Train:
     would write thousands of lines into a pipe or log file)."""
 
     def run(self) -> None:
+        started = time.perf_counter()  # --minutes counts the set-up (JAX, compiling) too
         from pianist.agents import PRESETS, get_preset, train
         from pianist.agents.rundir import read_run_config
 
@@ -119,6 +121,7 @@ class Train:
                 progress=show_bar,
                 message=_out,
                 stop_after_s=budget_s,
+                budget_from=started,
             )
         else:
             if self.song is None:
@@ -138,6 +141,7 @@ class Train:
                 progress=show_bar,
                 message=_out,
                 stop_after_s=budget_s,
+                budget_from=started,
             )
         f1 = result.last_eval.get("f1", float("nan"))
         _out(f"trained to step {result.step}: F1 {f1:.3f} -> {result.run_dir}")
