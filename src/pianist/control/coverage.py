@@ -25,7 +25,7 @@ Arrays in, arrays out; lengths in m.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass
 from typing import TYPE_CHECKING
 
@@ -48,8 +48,8 @@ def frame_ceiling(
     keys: np.ndarray,
     key_y: np.ndarray,
     black: np.ndarray,
-    right: HandReach,
-    left: HandReach,
+    right: HandReach | Sequence[HandReach],
+    left: HandReach | Sequence[HandReach],
     separation_m: float,
     tolerance_m: float = 0.0,
     step_m: float = CEILING_STEP_M,
@@ -60,7 +60,9 @@ def frame_ceiling(
         keys: (T, 88) bool, keys due at each frame.
         key_y: (88,) press point of each key across the keyboard (m).
         black: (88,) bool, black keys.
-        right, left: each hand's reach and slide range (:class:`HandReach`).
+        right, left: each hand's reach and slide range (:class:`HandReach`), or its reach
+            in each of its poses (a sequence, the same slide range): each hand then takes,
+            frame by frame, the pose that plays the most of its keys.
         separation_m: closest the forearm roots may come (m); 0 lets them meet.
         tolerance_m: each finger's reach widened by this on both sides (m): the sampled
             reach is a little conservative, and a bound should not be.
@@ -68,7 +70,11 @@ def frame_ceiling(
     """
     if keys.ndim != 2 or keys.shape[1] != key_y.shape[0]:
         raise ValueError(f"keys must be (T, {key_y.shape[0]}), not {keys.shape}")
-    right, left = (_widened(h, tolerance_m) for h in (right, left))
+    rights, lefts = (
+        [_widened(h, tolerance_m) for h in ([x] if isinstance(x, HandReach) else x)]
+        for x in (right, left)
+    )
+    right, left = rights[0], lefts[0]
     grids = [
         np.arange(h.slide_range[0], h.slide_range[1] + step_m / 2, step_m) for h in (right, left)
     ]
@@ -84,7 +90,7 @@ def frame_ceiling(
         ids = ids[np.argsort(key_y[ids], kind="stable")]
         signature = tuple(ids.tolist())
         if signature not in cache:
-            cache[signature] = _fewest_lost(ids, key_y, black, right, left, grids, last_left)
+            cache[signature] = _fewest_lost(ids, key_y, black, rights, lefts, grids, last_left)
         lost[t] = cache[signature]
     return lost
 
@@ -93,21 +99,35 @@ def _fewest_lost(
     ids: np.ndarray,
     key_y: np.ndarray,
     black: np.ndarray,
-    right: HandReach,
-    left: HandReach,
+    rights: list[HandReach],
+    lefts: list[HandReach],
     grids: list[np.ndarray],
     last_left: np.ndarray,
 ) -> int:
-    """One frame's keys (ascending y): how many the best placement and split leave unplayed."""
+    """One frame's keys (ascending y): how many the best placement, poses and split leave
+    unplayed."""
     n = ids.size
     ones = np.ones(n)
-    # high[s, p]: how many of the highest s keys the right hand plays from position p; low[s, q]
-    # the same for the left hand and the lowest s keys (edges count in full: edge cost 0).
-    high = key_prefix_values(
-        ids, ones, key_y, black, right.full_reach, right.full_reach, grids[0], 0.0, "down"
+    # high[s, p]: how many of the highest s keys the right hand plays from position p in its
+    # best pose for them; low[s, q] the same for the left hand and the lowest s keys (edges
+    # count in full: edge cost 0).
+    high = np.max(
+        [
+            key_prefix_values(
+                ids, ones, key_y, black, h.full_reach, h.full_reach, grids[0], 0.0, "down"
+            )
+            for h in rights
+        ],
+        axis=0,
     )
-    low = key_prefix_values(
-        ids, ones, key_y, black, left.full_reach, left.full_reach, grids[1], 0.0, "up"
+    low = np.max(
+        [
+            key_prefix_values(
+                ids, ones, key_y, black, h.full_reach, h.full_reach, grids[1], 0.0, "up"
+            )
+            for h in lefts
+        ],
+        axis=0,
     )
     # For each right-hand position, the best left-hand position that keeps clear of it.
     best_low = np.maximum.accumulate(low, axis=1)  # (n + 1, PL): best over q' <= q
@@ -166,6 +186,9 @@ class Coverage:
     (:func:`ceiling_scores`)."""
     ceiling_f1: float
     """The episode F1 no controller with these fingers' reach can pass."""
+    straight_ceiling_f1: float
+    """The same with each hand held in its home pose (the wrist straight): the ceiling of
+    a planner that never turns the wrist, not of the hands."""
     plan_f1: float
     """The episode F1 of sounding exactly the plan's playable key-frames (:func:`plan_f1`)."""
 
@@ -178,19 +201,23 @@ class Coverage:
 
 
 def planner_ceiling(
-    planner: IKPlanner, able: Callable[[HandReach], HandReach] | None = None
+    planner: IKPlanner,
+    able: Callable[[HandReach], HandReach] | None = None,
+    reaches: dict[str, list[HandReach]] | None = None,
 ) -> np.ndarray:
     """:func:`frame_ceiling` of ``planner``'s piece and hands (after its reset), with its key
-    points, forearm separation and ``playable_tolerance_m``; ``able`` maps each hand's reach
-    to another (what if the hands could do more). A scene with one hand: the other reaches
-    nothing and is never in the way."""
+    points, forearm separation and ``playable_tolerance_m``; ``reaches``: each hand's reach
+    per pose, by side (default: the home pose's, the wrist straight; the whole hand's is
+    :meth:`IKPlanner.whole_hand_reaches`); ``able`` maps each reach to another (what if the
+    hands could do more). A scene with one hand: the other reaches nothing and is never in
+    the way."""
     cfg = planner.config
-    reach = {hand.side: hand.reach_model() for hand in planner.hands}
+    reach = reaches or {hand.side: [hand.reach_model()] for hand in planner.hands}
     nothing = np.zeros((5, 2, 2))
-    right = reach.get("right", HandReach(nothing, nothing, 1e3, (0.0, 0.0)))
-    left = reach.get("left", HandReach(nothing, nothing, -1e3, (0.0, 0.0)))
+    right = reach.get("right", [HandReach(nothing, nothing, 1e3, (0.0, 0.0))])
+    left = reach.get("left", [HandReach(nothing, nothing, -1e3, (0.0, 0.0))])
     if able is not None:
-        right, left = able(right), able(left)
+        right, left = [able(h) for h in right], [able(h) for h in left]
     return frame_ceiling(
         planner.goal.keys,
         planner.key_point[:, 1],
@@ -243,7 +270,8 @@ def plan_coverage(planner: IKPlanner) -> Coverage:
     left_out_keys, shift_keys = plan_key_classes(planner)
     in_shift = int(shift_keys.sum())
     playable = int(playable_mask(planner).sum())
-    lost = planner_ceiling(planner)
+    lost = planner_ceiling(planner, reaches=planner.whole_hand_reaches())
+    _, straight_f1 = ceiling_scores(keys, planner_ceiling(planner))
     due = int(keys.sum())
     left_out = int(left_out_keys.sum())
     recall, f1 = ceiling_scores(keys, lost)
@@ -256,5 +284,6 @@ def plan_coverage(planner: IKPlanner) -> Coverage:
         ceiling_lost=int(lost.sum()),
         ceiling_recall=recall,
         ceiling_f1=f1,
+        straight_ceiling_f1=straight_f1,
         plan_f1=plan_f1(planner),
     )

@@ -70,6 +70,25 @@ class HandPlanCosts:
     may give a held key to another finger, which lets it up)."""
     shift_cost: float = 0.3
     """Cost of a shift on top of the key-frames it loses."""
+    pose_change_cost: float = 0.5
+    """Cost of a change of the hand's pose (a reach pose, the wrist turned; see ``poses``
+    in :func:`plan_hand`) on top of a shift's: the hand lands less surely after a turn."""
+    reach_pose_black_keys: bool = False
+    """Whether a pose other than the first plays black keys: with the wrist turned the
+    thumb reaches none, and octaves on black keys given to the index and little fingers
+    at the edge of their reach failed (a Clara Schumann polonaise's bass, turned: 53 % of
+    its keys lost against 31 % straight)."""
+    reach_pose_loss: float = 0.05
+    """The share of a hand's keys a pose other than the first (the wrist turned) is counted
+    to lose at every frame where it is wanted: a chord struck together that the first pose
+    covers from no position (a block octave: one key of two lost straight, against 2 x this
+    turned) ..."""
+    reach_pose_idle_loss: float = 1.0
+    """... and at every other frame (keys held from earlier among them, or a chord the first
+    pose covers): fingers at the edge of the turned hand's reach land less surely, and in
+    moving passages they lost more than the keys the straight hand gives up (the C major
+    prelude 0.934 -> 0.882 with its right hand turned for 21 % of the piece to hold keys
+    over its arpeggios, at 0.05 everywhere)."""
     objective: Objective = "key_frames"
     """What a lost key costs. ``key_frames``: its weight, the same in every frame.
     ``step_f1``: what it takes from the frame's F1, the metric's unit (F1 per step, averaged
@@ -118,6 +137,8 @@ class HandPlan:
         skip: (T, 88) keys of this hand that the plan leaves unplayed (out of reach from the
             planned position: a chord wider than the hand).
         cost: the plan's total cost (lost key-frames and penalties).
+        pose: (T,) int, the hand's pose at every frame (index into the reaches given; 0,
+            the first, with one reach); held like ``position`` between notes.
     """
 
     position: np.ndarray
@@ -125,6 +146,7 @@ class HandPlan:
     fingers: np.ndarray
     skip: np.ndarray
     cost: float
+    pose: np.ndarray
 
 
 def plan_hand(
@@ -143,8 +165,14 @@ def plan_hand(
     refinger: bool = False,
     extra_cost: Callable[[np.ndarray], np.ndarray] | None = None,
     other_kept: np.ndarray | None = None,
+    pose_frames: int = 1,
 ) -> HandPlan:
-    """The cheapest slide positions over a piece for one hand (module docstring).
+    """The cheapest slide positions (and poses) over a piece for one hand (module docstring).
+
+    With the reaches of K poses (``full_reach`` (K, 5, 2, 2)), every candidate is a
+    position in a pose: the plan chooses the pose with the position, a change of pose
+    costing a shift of at least ``pose_frames`` frames plus ``pose_change_cost``, and the
+    hand starts in pose 0.
 
     Args:
         keys: (T, 88) bool, keys due at each frame.
@@ -153,9 +181,11 @@ def plan_hand(
         key_y: (88,) press point of each key across the keyboard (m).
         black: (88,) bool, black keys.
         full_reach: (5, 2, 2) per finger, white (0) / black (1) key: the lowest and highest
-            (key y - slide position) at which the finger can press the key.
-        reach: (5, 2, 2) the same, without the edges where a finger slips.
-        rest_offset: (5,) key y - slide position that puts each finger at its resting place.
+            (key y - slide position) at which the finger can press the key; or (K, 5, 2, 2),
+            one per pose.
+        reach: (5, 2, 2) or (K, 5, 2, 2) the same, without the edges where a finger slips.
+        rest_offset: (5,) or (K, 5) key y - slide position that puts each finger at its
+            resting place.
         slide_range: (low, high) slide positions (m).
         start: the slide's position before the first frame (m).
         dt: control step (s).
@@ -168,38 +198,57 @@ def plan_hand(
             close to the other forearm).
         other_kept: (T,) with ``objective="step_f1"``, the keys the other hand's plan keeps
             at each frame (None: all the due keys that are not this hand's).
+        pose_frames: frames a change of pose takes (the wrist's servos), >= 1.
     Returns:
         The :class:`HandPlan`.
     """
     c = costs or HandPlanCosts()
     T = keys.shape[0]
+    full_k, reach_k = np.asarray(full_reach), np.asarray(reach)
+    rest_k = np.asarray(rest_offset)
+    if full_k.ndim == 3:
+        full_k, reach_k, rest_k = full_k[None], reach_k[None], rest_k[None]
+    K = full_k.shape[0]
+    if K > 1 and not c.reach_pose_black_keys:
+        # No finger reaches a black key in the other poses: an empty interval.
+        full_k, reach_k = full_k.copy(), reach_k.copy()
+        full_k[1:, :, 1], reach_k[1:, :, 1] = (np.inf, -np.inf), (np.inf, -np.inf)
     mine = keys & (fingers >= 0)
     busy = np.asarray(mine.any(axis=1))
     skip = np.zeros(keys.shape, dtype=bool)
     if not busy.any():
-        return HandPlan(np.full(T, float(start)), busy, np.where(mine, fingers, -1), skip, 0.0)
+        held_fingers = np.where(mine, fingers, -1)
+        no_pose = np.zeros(T, dtype=int)
+        return HandPlan(np.full(T, float(start)), busy, held_fingers, skip, 0.0, no_pose)
     frames, key_ids = np.nonzero(mine)
     offset = key_y[key_ids]
     colour = black[key_ids].astype(int)
-    # Candidate positions: every slide position that brings some key within some reach.
-    span_lo, span_hi = float(np.min(full_reach[..., 0])), float(np.max(full_reach[..., 1]))
-    low = max(slide_range[0], float(np.min(offset)) - span_hi - c.grid_m)
-    high = min(slide_range[1], float(np.max(offset)) - span_lo + c.grid_m)
-    grid = np.arange(low, high + c.grid_m / 2, c.grid_m) if high > low else np.array([low])
+    grid = _candidate_positions(offset, full_k, slide_range, c.grid_m)
+    P = len(grid)
     weights = _voice_weights(frames, offset, T, outer, c.outer_voice_weight)
-    if refinger:
-        stay = _matching_costs(
-            frames, key_ids, key_y, black, weights, full_reach, reach, grid, T, c
-        )
-        centre_offset = np.full(len(frames), rest_offset[len(rest_offset) // 2])
-    else:
-        finger_ids = fingers[frames, key_ids]
-        lo, hi = full_reach[finger_ids, colour].T  # (n,) each
-        lo_in, hi_in = reach[finger_ids, colour].T
-        stay = _stay_costs(frames, offset, lo, hi, lo_in, hi_in, weights, grid, T, c)
-        centre_offset = rest_offset[finger_ids]
+    # Every candidate is a position in a pose: (T, K * P), pose-major.
+    stays, centres = [], []
+    for q in range(K):
+        if refinger:
+            stays.append(
+                _matching_costs(
+                    frames, key_ids, key_y, black, weights, full_k[q], reach_k[q], grid, T, c
+                )
+            )
+            centres.append(np.full(len(frames), rest_k[q][rest_k.shape[1] // 2]))
+        else:
+            finger_ids = fingers[frames, key_ids]
+            lo, hi = full_k[q][finger_ids, colour].T  # (n,) each
+            lo_in, hi_in = reach_k[q][finger_ids, colour].T
+            stays.append(_stay_costs(frames, offset, lo, hi, lo_in, hi_in, weights, grid, T, c))
+            centres.append(rest_k[q][finger_ids])
     frame_cost = np.zeros(T)  # what losing all the hand's keys at a frame costs
     np.add.at(frame_cost, frames, weights)
+    stay = np.concatenate(stays, axis=1)
+    # A reach pose is wanted for a chord struck together that the first pose cannot cover.
+    wanted = _struck_together(mine) & (stay[:, :P].min(axis=1) >= 0.5)
+    loss = np.where(wanted, c.reach_pose_loss, c.reach_pose_idle_loss)
+    stay[:, P:] += (loss * frame_cost)[:, None]
     if c.objective == "step_f1":
         stay, frame_cost = step_f1_costs(keys, mine, stay, other_kept, c.step_f1_scale)
         k = c.step_f1_move_scale
@@ -209,29 +258,34 @@ def plan_hand(
             small_move_cost_per_m=k * c.small_move_cost_per_m,
             held_move_cost=k * c.held_move_cost,
             shift_cost=k * c.shift_cost,
+            pose_change_cost=k * c.pose_change_cost,
         )
-    stay += _comfort_costs(frames, offset - centre_offset, grid, T, c)
+    stay += np.concatenate(
+        [_comfort_costs(frames, offset - centre, grid, T, c) for centre in centres], axis=1
+    )
     if extra_cost is not None:
-        stay += extra_cost(grid)
+        stay += np.tile(extra_cost(grid), (1, K))
     lost = np.r_[0.0, np.cumsum(frame_cost)]  # lost[t]: the cost of frames before t lost
     held = np.zeros(T)  # keys of the hand due at both t - 1 and t
     held[1:] = (mine[1:] & mine[:-1]).sum(axis=1)
     # The hand moves only where its keys change: frames with the same keys form one segment.
     starts = np.flatnonzero(np.r_[True, (mine[1:] != mine[:-1]).any(axis=1)])
-    path, total = _viterbi(stay, lost, held, starts, grid, start, dt, c)
-    position = grid[path]
-    # Frames without notes hold the next note's position; after the last note, stay.
+    path, total = _viterbi(stay, lost, held, starts, grid, K, start, dt, c, pose_frames)
+    position, pose = grid[path % P], path // P
+    # Frames without notes hold the next note's place; after the last note, stay.
     known = np.flatnonzero(busy)
     nxt = np.minimum(np.searchsorted(known, np.arange(T)), known.size - 1)
     position = np.where(busy, position, position[known[nxt]])
+    pose = np.where(busy, pose, pose[known[nxt]])
     if refinger:
         planned = _assign_fingers(
             mine,
             key_y,
             black,
             position,
-            full_reach,
-            reach,
+            pose,
+            full_k,
+            reach_k,
             outer,
             c.outer_voice_weight,
             c.edge_cost,
@@ -239,9 +293,50 @@ def plan_hand(
     else:
         planned = np.where(mine, fingers, -1)
         relative = offset - position[frames]
+        lo, hi = full_k[pose[frames], fingers[frames, key_ids], colour].T
         skip[frames, key_ids] = ~_reachable(relative, lo, hi)
     skip |= mine & (planned < 0)
-    return HandPlan(position, busy, planned, skip, total)
+    return HandPlan(position, busy, planned, skip, total, pose)
+
+
+def _struck_together(mine: np.ndarray) -> np.ndarray:
+    """(T,) bool: frames whose due keys (``mine`` (T, 88)) all began at the same frame (a
+    chord struck together, none held from before it); False where none is due."""
+    began = mine & ~np.vstack([np.zeros((1, mine.shape[1]), dtype=bool), mine[:-1]])
+    # Each due key's note began at the last frame it began at (or before): its start frame.
+    start = np.where(began, np.arange(mine.shape[0])[:, None], -1)
+    start = np.maximum.accumulate(start, axis=0)
+    first = np.where(mine, start, np.iinfo(np.int64).max).min(axis=1)
+    last = np.where(mine, start, -1).max(axis=1)
+    return mine.any(axis=1) & (first == last)
+
+
+def _candidate_positions(
+    offset: np.ndarray, full_reach: np.ndarray, slide_range: tuple[float, float], step: float
+) -> np.ndarray:
+    """(P,) candidate slide positions (m): every one, ``step`` apart, that brings some key
+    (``offset`` (n,) its y) within some finger's reach in the first pose, extended by whole
+    steps to those of the other poses (``full_reach`` (K, 5, 2, 2)); the first pose's
+    candidates are the same whatever the other poses."""
+    lo_key, hi_key = float(np.min(offset)), float(np.max(offset))
+
+    def bounds(reach: np.ndarray) -> tuple[float, float]:
+        low = max(slide_range[0], lo_key - float(np.max(reach[..., 1])) - step)
+        high = min(slide_range[1], hi_key - float(np.min(reach[..., 0])) + step)
+        return low, high
+
+    low, high = bounds(full_reach[0])
+    grid = np.arange(low, high + step / 2, step) if high > low else np.array([low])
+    low_all, high_all = bounds(full_reach)
+    below = max(0, int(np.ceil((low - low_all) / step - 1e-9)))
+    above = max(0, int(np.ceil((high_all - grid[-1]) / step - 1e-9)))
+    return np.concatenate(
+        [
+            grid[0] - step * np.arange(below, 0, -1),
+            grid,
+            grid[-1] + step * np.arange(1, above + 1),
+        ]
+    )
 
 
 def finger_order(full_reach: np.ndarray) -> np.ndarray:
@@ -357,31 +452,35 @@ def _assign_fingers(
     key_y: np.ndarray,
     black: np.ndarray,
     position: np.ndarray,
+    pose: np.ndarray,
     full_reach: np.ndarray,
     reach: np.ndarray,
     outer: str,
     outer_weight: float,
     edge_cost: float,
 ) -> np.ndarray:
-    """(T, 88) the finger of each of the hand's due keys at the planned positions (-1: none).
+    """(T, 88) the finger of each of the hand's due keys at the planned positions and poses
+    (``pose`` (T,) into ``full_reach`` / ``reach`` (K, 5, 2, 2)); -1: none.
 
     A key keeps the finger that struck it while it is held and that finger still reaches it
     (a finger that changed mid-note would let the key up).
     """
-    order = finger_order(full_reach)
     out = np.full(mine.shape, -1)
     for t in np.flatnonzero(mine.any(axis=1)).tolist():
         ids = np.flatnonzero(mine[t])
         ids = ids[np.argsort(key_y[ids], kind="stable")]
         held = (t > 0) & mine[t - 1, ids] & (out[t - 1, ids] >= 0)
-        if t > 0 and held.all() and position[t] == position[t - 1]:
+        same_place = t > 0 and position[t] == position[t - 1] and pose[t] == pose[t - 1]
+        if same_place and held.all():
             out[t, ids] = out[t - 1, ids]
             continue
+        k = int(pose[t])
+        order = finger_order(full_reach[k])
         extreme = np.argmax(key_y[ids]) if outer == "top" else np.argmin(key_y[ids])
         w = np.ones(len(ids))
         w[extreme] = outer_weight  # the outer voice first
         can, value = _frame_pairs(
-            ids, key_y, black, full_reach, reach, order, position[t : t + 1], edge_cost
+            ids, key_y, black, full_reach[k], reach[k], order, position[t : t + 1], edge_cost
         )
         value = value * w[:, None, None]
         if t > 0:
@@ -516,36 +615,48 @@ def _viterbi(
     held: np.ndarray,
     starts: np.ndarray,
     grid: np.ndarray,
+    poses: int,
     start: float,
     dt: float,
     c: HandPlanCosts,
+    pose_frames: int,
 ) -> tuple[np.ndarray, float]:
     """The cheapest path of candidate indices (T,) and its cost; the hand may move only at
-    the ``starts`` of segments (frame indices, the first 0)."""
-    T, P = stay.shape
-    distance = np.abs(grid[:, None] - grid[None, :])  # (from, to)
-    shift = distance > c.shift_m
-    frames_needed = move_frames(distance, dt, c.slide_acceleration_m_s2)  # (P, P)
+    the ``starts`` of segments (frame indices, the first 0). Candidate i is position
+    ``grid[i % P]`` in pose ``i // P`` (``stay`` (T, poses * P)); the hand starts in pose 0."""
+    T, Q = stay.shape
+    P = len(grid)
+    positions = np.tile(grid, poses)
+    pose_of = np.repeat(np.arange(poses), P)
+    distance = np.abs(positions[:, None] - positions[None, :])  # (from, to)
+    turn = pose_of[:, None] != pose_of[None, :]
+    # A change of pose is made with the fingers lifted, like a shift, and takes at least
+    # the wrist's frames.
+    shift = (distance > c.shift_m) | turn
+    frames_needed = move_frames(distance, dt, c.slide_acceleration_m_s2)  # (Q, Q)
+    frames_needed = np.where(turn, np.maximum(frames_needed, pose_frames), frames_needed)
     moved = distance > 1e-9
     small = np.where(moved, c.small_move_cost + c.small_move_cost_per_m * distance, 0.0)
+    shift_cost = c.shift_cost + turn * c.pose_change_cost
     # The hand comes from its start position: until the slide can have got to a candidate,
-    # being there plays none of the frame's keys. (P,): the first frame it can be there.
-    arrival = move_frames(np.abs(grid - start), dt, c.slide_acceleration_m_s2) - 1
+    # being there plays none of the frame's keys. (Q,): the first frame it can be there.
+    arrival = move_frames(np.abs(positions - start), dt, c.slide_acceleration_m_s2)
+    arrival = np.where(pose_of > 0, np.maximum(arrival, pose_frames), arrival) - 1
     every_key = lost[1:] - lost[:-1]  # (T,) weight of all the keys due at each frame
     early = np.arange(T)[:, None] < arrival[None, :]
     stay = np.where(early, every_key[:, None], stay)
-    segment_stay = np.add.reduceat(stay, starts, axis=0)  # (S, P)
+    segment_stay = np.add.reduceat(stay, starts, axis=0)  # (S, Q)
     S = len(starts)
     value = segment_stay[0].copy()
-    back = np.zeros((S, P), dtype=np.int32)
+    back = np.zeros((S, Q), dtype=np.int32)
     for s in range(1, S):
         t = starts[s]
         # Key-frames a shift into frame t loses: those of the frames it needs before t.
         before = lost[t] - lost[np.maximum(t - frames_needed, 0)]
-        move = np.where(shift, before + c.shift_cost, small + moved * held[t] * c.held_move_cost)
+        move = np.where(shift, before + shift_cost, small + moved * held[t] * c.held_move_cost)
         total = value[:, None] + move
         back[s] = np.argmin(total, axis=0)
-        value = total[back[s], np.arange(P)] + segment_stay[s]
+        value = total[back[s], np.arange(Q)] + segment_stay[s]
     choice = np.empty(S, dtype=np.int64)
     choice[-1] = int(np.argmin(value))
     for s in range(S - 1, 0, -1):

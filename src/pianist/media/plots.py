@@ -122,7 +122,9 @@ def plot_pianoroll(
             linewidth=1.0,
         )
     spans = episode.extra.get("hand_key_span") if hasattr(episode, "extra") else None
+    poses = episode.extra.get("hand_pose") if hasattr(episode, "extra") else None
     span_handles = []
+    turned_handle = False
     if spans is not None and len(spans) == steps:
         # The planner's hand positions: the keys each hand's fingers reach, step by step.
         edges = np.arange(steps + 1) * dt
@@ -133,6 +135,24 @@ def plot_pianoroll(
             hi = np.r_[spans[:, h, 1], spans[-1, h, 1]]
             roll.fill_between(edges, lo, hi, step="post", color=colour, alpha=0.12, lw=0)
             span_handles.append(Patch(facecolor=colour, alpha=0.3, label=f"{side} hand reach"))
+            if poses is not None and poses.shape == (steps, spans.shape[1]) and poses[:, h].any():
+                # Where the plan turns the wrist (a reach pose), the band is hatched.
+                turned = np.r_[poses[:, h] > 0, poses[-1, h] > 0]
+                roll.fill_between(
+                    edges,
+                    lo,
+                    hi,
+                    where=turned,
+                    step="post",
+                    facecolor="none",
+                    edgecolor=colour,
+                    hatch="..",
+                    alpha=0.5,
+                    lw=0,
+                )
+                turned_handle = True
+    if turned_handle:
+        span_handles.append(Patch(facecolor="none", hatch="..", label="wrist turned"))
     _key_axis(roll, low, high, pedal_lane if show_pedal else None)
     roll.set_xlim(0.0, steps * dt)
     roll.set_ylabel("key")

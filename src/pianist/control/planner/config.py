@@ -113,6 +113,20 @@ class PlannerConfig:
     wrist_pose_without_tz: tuple[float, float] = (0.0, 0.25)
     """The same without it: the wrist flexed, else the fingers cannot reach a key's bottom
     from the home height."""
+    reach_poses: tuple[tuple[float, float, float, float], ...] = ((-0.44, 0.28, 0.0, 0.0075),)
+    """Hand poses besides the home one (``wrist_pose``, ``ty`` 0, not raised) that the
+    whole-piece plan may put a hand in, each (WRJ2 rad, WRJ1 rad, forearm ty m, forearm
+    raised m above ``hand_height_m``). The default turns the wrist towards the thumb and
+    flexes it: the thumb's lowest white key to the little finger's highest spans 0.176 m,
+    an octave (0.1645 m) and more, against 0.129 m straight. The 7.5 mm raise lets a
+    little finger at the edge of that reach hover over its key instead of pressing the one
+    below it: block octaves in both hands F1 0.85 -> 0.95 (fast), 0.81 -> 0.93 (faithful).
+    Each pose has its own posture samples and reach; the plan changes pose with the
+    fingers lifted (``pose_change_s``; its weights in :class:`HandPlanCosts`). Empty: the
+    wrist stays at its home pose, the planner as before reach poses."""
+    pose_change_s: float = 0.15
+    """How long a change of pose takes: the wrist's servos (kp 10 and 8) turn it by 0.44 and
+    0.28 rad to within 0.015 rad in 3 control steps of 0.05 s, in both physics presets."""
     wrist_feedback: tuple[float, float] = (2.0, 0.0)
     """Gains (WRJ2, WRJ1) of the wrist commands on how far each joint is off its pose. A
     forearm move swings the hand sideways on its soft wrist servo (kp 10): left alone, WRJ2
@@ -255,6 +269,13 @@ class PlannerConfig:
     unweighted, the solution gave up ~8 mm across (the tip then pressed the crack between
     two keys, or slid off as it pressed); weighted, it gives up depth, which the key's bottom
     takes anyway. (Weighting every finger's error so cost the debug chords ~0.009 F1.)"""
+    hover_height_weight: float = 10.0
+    """In a reach pose (``reach_poses``), the weight of a hovering finger's error in height
+    (z), against across and along the keys. A finger hovering over a key at the edge of the
+    turned hand's reach cannot be both that far out and that high: unweighted, the solution
+    gave up height and the little finger of an octave pressed the key below its own for the
+    six frames it hovered; weighted, it gives up reach and stays above the keys. The home
+    pose keeps equal weights (its behaviour unchanged)."""
     step_limit_rad: float = 0.3
     """Largest change of one joint in one IK iteration."""
     bent_wrist_push: float = 0.0
@@ -295,6 +316,14 @@ class PlannerConfig:
     """Keep the push for the rest of the key's press once given (the key sounds only in the
     last 0.5 degrees of its travel: a finger easing off lets it flicker)."""
 
+    def hand_poses(self, has_tz: bool) -> tuple[tuple[float, float, float, float], ...]:
+        """Every pose a hand may take, (WRJ2 rad, WRJ1 rad, ty m, raised m): the home pose first
+        (``wrist_pose``, or ``wrist_pose_without_tz`` in a scene without the height slide,
+        where the reach poses are not used), then ``reach_poses``."""
+        if not has_tz:
+            return ((*self.wrist_pose_without_tz, 0.0, 0.0),)
+        return ((*self.wrist_pose, 0.0, 0.0), *self.reach_poses)
+
     def __post_init__(self) -> None:
         unknown = [name for name in self.best_candidates if name not in PLAN_CANDIDATES]
         if not self.best_candidates or unknown:
@@ -302,12 +331,38 @@ class PlannerConfig:
                 f"best_candidates must be some of {', '.join(PLAN_CANDIDATES)}, "
                 f"not {list(self.best_candidates)}"
             )
+        for pose in self.reach_poses:
+            if len(pose) != 4 or not all(np.isfinite(v) for v in pose):
+                raise ValueError(
+                    "each of reach_poses must be (WRJ2 rad, WRJ1 rad, ty m, raised m), "
+                    f"not {pose!r}"
+                )
+        if not self.pose_change_s > 0:
+            raise ValueError(f"pose_change_s must be > 0, not {self.pose_change_s}")
         if self.shift_delay_max_frames < 0 or self.shift_delay_cost < 0:
             raise ValueError(
                 "shift_delay_max_frames and shift_delay_cost must be >= 0, not "
                 f"{self.shift_delay_max_frames} and {self.shift_delay_cost}"
             )
 
+
+#: The poses (WRJ2 rad, WRJ1 rad, forearm ty m, raised m) over which the whole hand's reach
+#: ceiling is taken (``reach_ceiling_f1``; the planner plays in its own few, ``reach_poses``):
+#: the wrist straight, turned either way and flexed, and the forearm pushed into the keys,
+#: which brings the thumb's tip to the black keys' press points. Over open-etude-12 it is
+#: 0.992 (fast scene), against 0.964 with the wrist straight.
+WHOLE_HAND_POSES: tuple[tuple[float, float, float, float], ...] = (
+    (0.0, 0.0, 0.0, 0.0),
+    (-0.2, 0.28, 0.0, 0.0),
+    (-0.3, 0.2, 0.0, 0.0),
+    (-0.44, 0.0, 0.0, 0.0),
+    (-0.44, 0.28, 0.0, 0.0),
+    (-0.52, 0.35, 0.0, 0.0),
+    (0.15, 0.0, 0.0, 0.0),
+    (0.15, 0.28, 0.0, 0.0),
+    (0.0, 0.0, 0.03, 0.0),
+    (-0.44, 0.28, 0.03, 0.0),
+)
 
 #: Environment options the planner plays best with: the forearm's height slide added. In the
 #: paper's action space the Shadow thumb cannot press a white key: with the forearm at its home

@@ -27,13 +27,14 @@ from pianist.control.base import BaseController
 from pianist.control.coverage import Coverage, plan_coverage, plan_key_classes, playable_mask
 from pianist.control.hand_order import uncross_hands
 from pianist.control.hand_plan import Objective
-from pianist.control.hand_split import SplitCosts, split_hands
+from pianist.control.hand_split import HandReach, SplitCosts, split_hands
 from pianist.control.lookahead import LookAhead
 from pianist.control.planner.config import (
     ENV_OPTIONS,
     FINGERS_PER_HAND,
     PAPER_ENV_OPTIONS,
     PLAN_CANDIDATES,
+    WHOLE_HAND_POSES,
     PlannerConfig,
 )
 from pianist.control.planner.forearm import _keep_forearms_apart
@@ -52,7 +53,18 @@ if TYPE_CHECKING:
 #: decided (``state``, ``active``: read by recorders of the planner's decisions).
 _MEMORY = ("pressing", "stuck", "last_tips", "last_key", "unsounded", "state", "active")
 #: A hand's plan for a song: what ``IKPlanner._plan`` sets (read only once made).
-_PLAN_ARRAYS = ("tx_plan", "tx_held", "busy", "skip", "free", "shift_to", "tx_path", "tx_servo")
+_PLAN_ARRAYS = (
+    "tx_plan",
+    "tx_held",
+    "busy",
+    "skip",
+    "free",
+    "shift_to",
+    "tx_path",
+    "tx_servo",
+    "pose_plan",
+    "pose_held",
+)
 #: Plans by (goal frames, scene options, config): a new episode of the same environment
 #: reuses its plan and rehearsal (planning takes up to ~1 s for a minute of music, rehearsal
 #: about two episodes) instead of making them again.
@@ -73,6 +85,7 @@ class IKPlanner(BaseController):
     def __init__(self, config: PlannerConfig | None = None) -> None:
         self.config = config or PlannerConfig()
         self._coverage: Coverage | None = None
+        self._whole_hand: dict[str, list[HandReach]] | None = None
         self._planned = False  # a plan is made at reset
         self._replay: Replay | None = None  # the chosen plan's rehearsal, to play again
         self.rehearsed: dict[str, float] = {}
@@ -90,6 +103,7 @@ class IKPlanner(BaseController):
 
     def reset(self, env: gym.Env, seed: int | None = None) -> None:
         self._coverage, self._planned, self._replay, self.rehearsed = None, True, None, {}
+        self._whole_hand = None
         self.setup(env)
         goal, handle, cfg = self.goal, self.handle, self.config
         key = (id(goal), handle.scene.options, cfg)
@@ -250,18 +264,37 @@ class IKPlanner(BaseController):
         return {
             "reach_ceiling_recall": c.ceiling_recall,
             "reach_ceiling_f1": c.ceiling_f1,
+            "reach_ceiling_straight_f1": c.straight_ceiling_f1,
             "plan_left_out_share": c.share("left_out"),
             "plan_in_shift_share": c.share("in_shift"),
             "plan_f1": c.plan_f1,
             **{f"rehearsed_f1_{name}": f1 for name, f1 in self.rehearsed.items()},
         }
 
+    def whole_hand_reaches(self) -> dict[str, list[HandReach]]:
+        """Each hand's reach (by side) in every pose of :data:`WHOLE_HAND_POSES` (after
+        reset): what the hands reach with every joint of the action space, for the reach
+        ceiling. Posture samples are made for each pose once per process (~0.15 s each)."""
+        if self._whole_hand is None:
+            cfg = dataclasses.replace(
+                self.config, wrist_pose=(0.0, 0.0), reach_poses=WHOLE_HAND_POSES[1:]
+            )
+            hands = [Hand(self.model, hand, cfg.full_hand) for hand in self.handle.scene.hands]
+            data = mujoco.MjData(self.model)
+            _use_postures(self.model, data, hands, cfg, self.handle.scene.options)
+            self._whole_hand = {
+                hand.side: [hand.reach_model(k) for k in range(len(hand.poses))] for hand in hands
+            }
+        return self._whole_hand
+
     def plan_arrays(self) -> dict[str, np.ndarray]:
         """The plan since ``reset``, per step:
 
         - ``hand_key_span``: (T, H, 2) the lowest and highest key (index 0-87, fractional:
           between two keys' press points) the fingers of each hand (right first) reach from
-          its planned forearm position;
+          its planned forearm position in its planned pose;
+        - ``hand_pose``: (T, H) int, each hand's planned pose (0: the home pose, the wrist
+          straight; k: ``PlannerConfig.reach_poses[k - 1]``);
         - ``hand_sides``: (H,) "right" / "left", the order of the hands above;
         - ``planned_fingers``: (T, 88) the finger (0-9) the plan gives each due key, -1 none;
         - ``left_out_keys``, ``shift_keys``: (T, 88) bool, the due keys the plan sends no
@@ -277,8 +310,9 @@ class IKPlanner(BaseController):
         spans = []
         hands = sorted(self.hands, key=lambda h: h.side != "right")
         for hand in hands:
-            low = hand.tx_plan + hand.full_reach[..., 0].min()
-            high = hand.tx_plan + hand.full_reach[..., 1].max()
+            full = np.stack([pose.full_reach for pose in hand.poses])[hand.pose_plan]
+            low = hand.tx_plan + full[..., 0].min(axis=(1, 2))
+            high = hand.tx_plan + full[..., 1].max(axis=(1, 2))
             span = [np.interp(y, key_y[order], order.astype(float)) for y in (low, high)]
             spans.append(np.stack(span, axis=1))
         planned = np.where(self.goal.keys, self.fingers, -1)
@@ -288,6 +322,7 @@ class IKPlanner(BaseController):
             "shift_keys": in_shift,
             "hand_key_span": np.stack(spans, axis=1),
             "hand_sides": np.array([hand.side for hand in hands]),
+            "hand_pose": np.stack([hand.pose_plan for hand in hands], axis=1),
             "planned_fingers": planned,
             "finger_states": self.finger_states.copy(),
         }
@@ -385,6 +420,7 @@ class IKPlanner(BaseController):
             dt=self.dt,
             costs=dataclasses.replace(self.config.hand_plan, objective=self._objective),
             refinger=refinger,
+            pose_change_s=self.config.pose_change_s,
         )
 
     def _plan_split(self, goal) -> None:
@@ -475,6 +511,7 @@ class IKPlanner(BaseController):
         hover_end = min(T, press_frame + 1 + round(cfg.hover_lead_s / self.dt))
         settings = [hand.settings or cfg for hand in self.hands]
         for hand, hand_cfg in zip(self.hands, settings, strict=True):
+            hand.use_pose(int(hand.pose_held[t]))
             hand.command_forearm(ctrl, handle.data, t, hand_cfg)
             hand.set_wrist(scratch, ctrl, hand_cfg)
             # The fingers are solved for where the moving forearm will be a little later:

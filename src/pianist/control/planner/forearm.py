@@ -31,6 +31,7 @@ import scipy.linalg
 from pianist.control.hand_plan import HandPlanCosts, move_frames, plan_hand
 from pianist.control.hand_split import HandReach
 from pianist.control.planner.config import FINGERS_PER_HAND, PlannerConfig, PlannerState
+from pianist.control.planner.postures import HandPose
 from pianist.sim import constants as C
 
 
@@ -87,10 +88,12 @@ class ForearmPlan:
     tz_actuator: int | None
     tz_qpos: int | None
     tz_range: np.ndarray | None
-    # Set by ``HandPostures.choose_lift_posture``.
+    # Set by ``HandPostures.use_pose`` (the pose in use) and ``_use_postures`` (every pose).
     tip_offset_y: np.ndarray
     reach: np.ndarray
     full_reach: np.ndarray
+    poses: list[HandPose]
+    pose_raise: float
     # Set here.
     tx_plan: np.ndarray
     busy: np.ndarray
@@ -100,6 +103,11 @@ class ForearmPlan:
     shift_to: np.ndarray
     tx_path: np.ndarray
     tx_servo: _Servo
+    pose_plan: np.ndarray
+    """(T,) int: the pose (index into ``poses``) the plan wants at each frame."""
+    pose_held: np.ndarray
+    """(T,) int: the pose the hand is commanded to at each step: each change made in the
+    frames its shift lifts the fingers for (:meth:`plan_commands`)."""
 
     def own_keys(self, goal) -> np.ndarray:
         """(T, 88) the due keys the song gives this hand."""
@@ -132,10 +140,12 @@ class ForearmPlan:
         extra_cost: Callable[[np.ndarray], np.ndarray] | None = None,
         drop: np.ndarray | None = None,
         other_kept: np.ndarray | None = None,
+        pose_change_s: float = 0.15,
     ) -> None:
-        """The forearm slide position at every frame from the whole-piece plan
-        (:func:`pianist.control.hand_plan.plan_hand`), with its ``busy``, ``skip`` and
-        ``key_fingers`` (T, 88), this hand's finger 0-4 of each due key (-1: none).
+        """The forearm slide position and the hand's pose at every frame from the
+        whole-piece plan (:func:`pianist.control.hand_plan.plan_hand`, over every pose of
+        ``poses``), with its ``busy``, ``skip`` and ``key_fingers`` (T, 88), this hand's
+        finger 0-4 of each due key (-1: none).
 
         ``take``: (T, 88) further keys (the other hand's) to play if the plan can
         (``refinger`` only); ``drop``: (T, 88) keys of this hand the other plays (left out
@@ -152,9 +162,9 @@ class ForearmPlan:
             local,
             key_point[:, 1],
             C.BLACK_KEY_MASK,
-            self.full_reach,
-            self.reach,
-            self.tip_offset_y,
+            np.stack([pose.full_reach for pose in self.poses]),
+            np.stack([pose.reach for pose in self.poses]),
+            np.stack([pose.tip_offset_y for pose in self.poses]),
             (float(self.tx_range[0]), float(self.tx_range[1])),
             start=0.0,
             dt=dt,
@@ -163,9 +173,10 @@ class ForearmPlan:
             refinger=refinger,
             extra_cost=extra_cost,
             other_kept=other_kept,
+            pose_frames=max(1, round(pose_change_s / dt)),
         )
         self.tx_plan, self.busy, self.skip = plan.position, plan.busy, plan.skip
-        self.key_fingers = plan.fingers
+        self.key_fingers, self.pose_plan = plan.fingers, plan.pose
 
     def plan_forearm(
         self,
@@ -237,11 +248,14 @@ class ForearmPlan:
             fill = np.isnan(wanted)
             wanted[fill] = wanted[known[nxt[fill]]]
         self.tx_plan = np.clip(wanted, *self.tx_range)
+        self.pose_plan = np.zeros(T, dtype=int)  # frame by frame: the home pose throughout
 
-    def reach_model(self) -> HandReach:
-        """What this hand reaches, as the whole-piece plans take it (set at reset)."""
+    def reach_model(self, pose: int = 0) -> HandReach:
+        """What this hand reaches in pose ``pose`` (the home pose by default), as the plans
+        take it (set at reset)."""
         slide_range = (float(self.tx_range[0]), float(self.tx_range[1]))
-        return HandReach(self.full_reach, self.reach, self.root_y, slide_range)
+        p = self.poses[pose]
+        return HandReach(p.full_reach, p.reach, self.root_y, slide_range)
 
     def playable_keyframes(self, planner: PlannerState) -> int:
         """Key-frames of this hand's plan that a finger can press (:meth:`playable_mask`)."""
@@ -256,7 +270,8 @@ class ForearmPlan:
         finger = planner.fingers[frames, keys] - self.finger_offset
         mine = (finger >= 0) & (finger < FINGERS_PER_HAND)
         frames, keys, finger = frames[mine], keys[mine], finger[mine]
-        lo, hi = self.full_reach[finger, C.BLACK_KEY_MASK[keys].astype(int)].T
+        full = np.stack([pose.full_reach for pose in self.poses])
+        lo, hi = full[self.pose_plan[frames], finger, C.BLACK_KEY_MASK[keys].astype(int)].T
         relative = planner.key_point[keys, 1] - self.tx_plan[frames]
         tolerance = planner.config.playable_tolerance_m
         inside = (relative >= lo - tolerance) & (relative <= hi + tolerance)
@@ -315,7 +330,9 @@ class ForearmPlan:
             raise ValueError("shift_lead_frames must be between 0 and press_lead_frames")
         # The whole-piece plan was made knowing which moves it makes with the fingers on the keys.
         threshold = cfg.hand_plan.shift_m if multi_step else cfg.shift_threshold_m
-        shifts = np.flatnonzero(np.abs(np.diff(plan)) > threshold) + 1
+        # A change of pose is a shift too: the wrist turns with the fingers lifted.
+        turns = np.diff(self.pose_plan) != 0
+        shifts = np.flatnonzero((np.abs(np.diff(plan)) > threshold) | turns) + 1
         delay = lead - cfg.shift_lead_frames
         # Steps each shift takes: a long jump needs more than one (the slide's servo has a
         # limited force); the whole-piece plan knows this and has paid for the frames.
@@ -323,6 +340,8 @@ class ForearmPlan:
             need = move_frames(
                 plan[shifts] - plan[shifts - 1], dt, cfg.hand_plan.slide_acceleration_m_s2
             )
+            turn_frames = max(1, round(cfg.pose_change_s / dt))
+            need = np.where(turns[shifts - 1], np.maximum(need, turn_frames), need)
         else:
             need = np.full(len(shifts), n)
         delays = np.full(len(shifts), delay)
@@ -330,10 +349,15 @@ class ForearmPlan:
         # (a frame plan moves in one-step pieces, whose frames in between play nothing).
         if multi_step and played is not None and cfg.shift_delay_max_frames > 0:
             delays += self._shift_delays(shifts, need, lead - delay, played, other, cfg)
+        # The pose commanded: each change from the start of its shift's window.
+        self.pose_held = self.pose_plan.copy()
         for k, steps, d in zip(shifts.tolist(), need.tolist(), delays.tolist(), strict=True):
             window = slice(max(0, k - steps - lead + d), max(0, k - lead + d))
             self.free[window] = True
             self.shift_to[window] = k
+            if self.pose_plan[k] != self.pose_plan[k - 1]:
+                self.pose_held[window.start : k] = self.pose_plan[k]
+                self.pose_held[k : window.start] = self.pose_plan[k - 1]
         if delays.any():
             # The path below ends every move ``lead`` frames early: hold the old position
             # ``delays`` frames longer before each shift (later shifts first, so that a shift
@@ -427,8 +451,9 @@ class ForearmPlan:
             assert self.tz_qpos is not None and self.tz_range is not None  # set with tz_actuator
             # The keys push the hand up (about a centimetre under a chord): pressing harder the
             # further it has risen stiffens the slide's servo against them.
-            rise = data.qpos[self.tz_qpos] - cfg.hand_height_m
-            command = cfg.hand_height_m - cfg.height_feedback * rise
+            height = cfg.hand_height_m + self.pose_raise
+            rise = data.qpos[self.tz_qpos] - height
+            command = height - cfg.height_feedback * rise
             ctrl[self.tz_actuator] = np.clip(command, *self.tz_range)
 
 

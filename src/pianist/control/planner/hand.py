@@ -37,6 +37,9 @@ class Hand(HandPostures, ForearmPlan, FingerTargets, FingerIK):
         self.tz_actuator = tz if tz >= 0 else None
         self.tz_qpos = m.jnt_qposadr[m.joint(f"{prefix}forearm_tz").id] if tz >= 0 else None
         self.tz_range = m.actuator_ctrlrange[tz] if tz >= 0 else None
+        ty = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, f"{prefix}A_forearm_ty")
+        self.ty_actuator = ty if ty >= 0 else None
+        self.ty_qpos = m.jnt_qposadr[m.joint(f"{prefix}forearm_ty").id] if ty >= 0 else None
 
         # Actuated joints of each finger (a joint, or a tendon over two joints) and the wrist.
         self.fingers: list[Finger] = []

@@ -24,6 +24,7 @@ import mujoco
 import numpy as np
 
 from pianist.control.planner.postures import Finger
+from pianist.control.planner.targets import FingerState
 
 
 class _Batch:
@@ -72,15 +73,25 @@ class _Batch:
         self.share = np.concatenate(share)
         self.made_from = [(f.samples, f.lift) for f in fingers]
         self.nv = nv
-        self._subsets: dict[tuple[bytes, float], _Subset] = {}
+        self._subsets: dict[tuple[bytes, bytes, float, float], _Subset] = {}
         self._dampings: dict[float, np.ndarray] = {}
 
-    def subset(self, active: np.ndarray, thumb_lateral_weight: float) -> _Subset:
-        """The arrays for the ``active`` (F,) bool fingers (made once per pattern)."""
-        key = (active.tobytes(), thumb_lateral_weight)
+    def subset(
+        self,
+        active: np.ndarray,
+        thumb_lateral_weight: float,
+        high: np.ndarray | None = None,
+        height_weight: float = 1.0,
+    ) -> _Subset:
+        """The arrays for the ``active`` (F,) bool fingers, the error in height of the
+        ``high`` (F,) bool ones weighted ``height_weight`` (made once per pattern)."""
+        raised = np.zeros_like(active) if high is None or height_weight == 1.0 else high
+        key = (active.tobytes(), raised.tobytes(), thumb_lateral_weight, height_weight)
         sub = self._subsets.get(key)
         if sub is None:
-            sub = self._subsets[key] = _Subset(self, np.flatnonzero(active), thumb_lateral_weight)
+            sub = self._subsets[key] = _Subset(
+                self, np.flatnonzero(active), thumb_lateral_weight, raised, height_weight
+            )
         return sub
 
     def damping(self, value: float) -> np.ndarray:
@@ -98,14 +109,21 @@ class _Batch:
             for f, (s, lift) in zip(fingers, self.made_from, strict=True)
         )
 
-    def nearest(self, fingers: np.ndarray, targets: np.ndarray) -> np.ndarray:
+    def nearest(
+        self, fingers: np.ndarray, targets: np.ndarray, weights: np.ndarray | None = None
+    ) -> np.ndarray:
         """(k, D) sampled postures whose fingertips are nearest ``targets`` (k, 3), for the
-        ``fingers`` (k,) indices."""
+        ``fingers`` (k,) indices; with ``weights`` (k, 3), by the weighted distance of the
+        fingers whose weights are not all 1."""
         # |tip - target|^2 less the target's own |target|^2, the same for every sample.
         best = [
             int(np.argmin(self.tip_norms[f] - 2.0 * (self.tips[f] @ target)))
             for f, target in zip(fingers.tolist(), targets, strict=True)
         ]
+        if weights is not None:
+            for i in np.flatnonzero((weights != 1.0).any(axis=1)).tolist():
+                error = (self.tips[fingers[i]] - targets[i]) * weights[i]
+                best[i] = int(np.argmin(np.einsum("si,si->s", error, error)))
         return self.samples[fingers, best]
 
     def set(self, data, angles: np.ndarray) -> None:
@@ -120,13 +138,23 @@ class _Subset:
     (k, 3, 1) the same for the Jacobian's rows, and ``jacobian_index`` (k, 3, J): where each
     finger's joint columns are in the flattened (F, 3, nv) Jacobians."""
 
-    def __init__(self, b: _Batch, fingers: np.ndarray, thumb_lateral_weight: float) -> None:
+    def __init__(
+        self,
+        b: _Batch,
+        fingers: np.ndarray,
+        thumb_lateral_weight: float,
+        raised: np.ndarray,
+        height_weight: float,
+    ) -> None:
         self.fingers = fingers
         self.pairs = [(int(f), int(b.sites[f])) for f in fingers]
         self.sites = b.sites[fingers]
         self.low, self.high, self.mix = b.low[fingers], b.high[fingers], b.mix[fingers]
         self.weights = np.ones((fingers.size, 3))
         self.weights[fingers == 0, 1] = thumb_lateral_weight
+        self.weights[raised[fingers], 2] = height_weight
+        # The nearest sample of a raised finger is found by the weighted distance too.
+        self.raised_weights = self.weights if raised[fingers].any() else None
         self.row_weights = self.weights[:, :, None]
         rows = (fingers[:, None] * 3 + np.arange(3)[None, :]) * b.nv  # (k, 3)
         self.jacobian_index = rows[:, :, None] + b.dofs[fingers][:, None, :]
@@ -143,24 +171,31 @@ class FingerIK:
     unsounded: np.ndarray
     repress: np.ndarray
     wrist_bent_up: float  # set by ``HandPostures.set_wrist`` each step
-    _batch: _Batch | None = None
-    _jacs: np.ndarray  # (F, 3, nv) each finger's fingertip Jacobian, made with _batch
+    pose_index: int  # the pose in use (``HandPostures.use_pose``)
+    state: np.ndarray  # (5,) each finger's FingerState this step (``FingerTargets``)
+    _batches: dict[int, _Batch]
+    _jacs: np.ndarray  # (F, 3, nv) each finger's fingertip Jacobian
 
     def _batched(self) -> _Batch:
-        if self._batch is None or not self._batch.current(self.fingers):
-            self._batch = _Batch(self.fingers, self.jacp.shape[1])
+        """The batched arrays of the pose in use (made once per pose and reset)."""
+        batches = self.__dict__.setdefault("_batches", {})
+        batch = batches.get(self.pose_index)
+        if batch is None or not batch.current(self.fingers):
+            batch = batches[self.pose_index] = _Batch(self.fingers, self.jacp.shape[1])
             self._jacs = np.zeros((len(self.fingers), 3, self.jacp.shape[1]))
-        return self._batch
+        return batch
 
     def solve(self, m, scratch, targets: np.ndarray, active: np.ndarray, cfg) -> None:
         """Set each finger's joints in ``scratch``: nearest sampled posture, then DLS."""
         b = self._batched()
         angles = b.lift.copy()  # (F, D)
-        sub = b.subset(active, cfg.thumb_lateral_weight)
+        # In a reach pose a hovering finger keeps its height first (``hover_height_weight``).
+        weight = cfg.hover_height_weight if self.pose_index > 0 else 1.0
+        sub = b.subset(active, cfg.thumb_lateral_weight, self.state == FingerState.HOVERING, weight)
         act = sub.fingers
         if act.size:
             goal = targets[act]
-            angles[act] = b.nearest(act, goal)
+            angles[act] = b.nearest(act, goal, sub.raised_weights)
             damping = b.damping(cfg.damping**2 + cfg.rest_weight)
             limit = cfg.step_limit_rad
             jacs = self._jacs

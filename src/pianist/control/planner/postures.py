@@ -1,13 +1,15 @@
-"""Each finger's actuated joints, and the sampled postures the IK starts from.
+"""Each finger's actuated joints, the hand's poses, and the sampled postures the IK starts from.
 
-At reset every finger's joints are sampled uniformly within their limits
-(``PlannerConfig.samples`` postures, always with generator seed 0) with the forearm at its
-playing height and the wrist at its pose, and each sample's fingertip is computed relative to
-the forearm body. The samples are made once per scene and config (:data:`_POSTURES`) and are
-read only. From them each hand (:class:`HandPostures`) takes
+A hand plays in one of a few poses (:meth:`PlannerConfig.hand_poses`): the home pose (the
+wrist straight) and the reach poses (the wrist turned towards the thumb and flexed, which
+spans an octave). For every pose, every finger's joints are sampled uniformly within their
+limits (``PlannerConfig.samples`` postures, always with generator seed 0) with the forearm at
+its playing height and the wrist at the pose, and each sample's fingertip is computed
+relative to the forearm body. The samples are made once per scene, config and pose
+(:data:`_POSTURES`) and are read only. From them each pose (:class:`HandPose`) takes
 
-- every finger's lifted posture ``Finger.lift`` (dof,) rad: the sample whose fingertip is
-  nearest a point above its resting place, ``lift_height_m`` clear of the keys;
+- every finger's lifted posture (dof,) rad: the sample whose fingertip is nearest a point
+  above its resting place, ``lift_height_m`` clear of the keys;
 - ``rest_tips`` and ``lift_tips`` (5, 3) m, fingertips relative to the forearm body;
 - ``tip_offset_y`` (5,) m: the forearm slide that puts finger f over a key at y is
   ``y - tip_offset_y[f]``;
@@ -15,12 +17,16 @@ read only. From them each hand (:class:`HandPostures`) takes
   the lowest and highest key y minus forearm slide from which the finger presses the key
   (``reach`` shrunk by ``reach_margin``).
 
+:meth:`HandPostures.use_pose` binds one pose's arrays to the hand (and its samples and lifted
+postures to the fingers): the stages that plan and execute read the pose in use.
+
 Inputs: the MuJoCo model, a scratch ``MjData``, the hands' indices, the config.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import mujoco
 import numpy as np
@@ -35,7 +41,7 @@ class Finger:
     """The actuated joints of one finger: actuator ids, limits, how to set and differentiate."""
 
     lift: np.ndarray
-    """The lifted posture (dof,), chosen by :meth:`HandPostures.choose_lift_posture`."""
+    """The lifted posture (dof,), of the pose in use (:meth:`HandPostures.use_pose`)."""
 
     def __init__(self, m, actuators: list[int], site: int) -> None:
         self.actuators = np.asarray(actuators, dtype=int)
@@ -98,8 +104,37 @@ def _rest_angles(m, finger: Finger) -> np.ndarray:
     return np.clip(angles, finger.low, finger.high)
 
 
+@dataclass(frozen=True)
+class HandPose:
+    """One pose of a hand (wrist angles and forearm ``ty``) and what its fingers do in it."""
+
+    wrist: tuple[float, float]
+    """WRJ2 (sideways; negative turns the hand towards its thumb) and WRJ1 (flexion), rad."""
+    ty: float
+    """The forearm's slide into the keys (m; 0 where the scene has none)."""
+    raise_m: float
+    """The forearm raised above its playing height (m; where the scene has the slide)."""
+    samples: list[tuple[np.ndarray, np.ndarray, scipy.spatial.cKDTree]]
+    """Per finger, thumb first: sampled postures (S, dof) rad, their fingertips (S, 3) m in
+    the forearm frame, and a k-d tree over those (read only, shared between planners)."""
+    lift: list[np.ndarray]
+    """Per finger, its lifted posture (dof,) rad."""
+    rest_tips: np.ndarray
+    """(5, 3) m: fingertips of the resting posture relative to the forearm body."""
+    lift_tips: np.ndarray
+    """(5, 3) m: the lifted fingertips, ``lift_height_m`` clear of the keys."""
+    tip_offset_y: np.ndarray
+    """(5,) m: the forearm slide that puts finger f over a key at y is y - tip_offset_y[f]."""
+    reach: np.ndarray
+    """(5, 2, 2) m: per finger, white (0) / black (1) key, the lowest and highest key y
+    minus forearm slide from which the finger presses the key, shrunk by ``reach_margin``."""
+    full_reach: np.ndarray
+    """(5, 2, 2) m: the same, not shrunk."""
+
+
 class HandPostures:
-    """A hand's postures: its forearm height and wrist pose, lifted posture and reach."""
+    """A hand's poses (the home pose and the reach poses), with each pose's posture samples,
+    lifted postures and reach; the pose in use is bound to the hand (:meth:`use_pose`)."""
 
     # Set by ``Hand.__init__``.
     side: str
@@ -107,10 +142,20 @@ class HandPostures:
     forearm_body: int
     tx_qpos: int
     tz_qpos: int | None
+    ty_qpos: int | None
+    ty_actuator: int | None
     fingers: list[Finger]
     held_actuators: np.ndarray
     wrist: list[tuple[int, np.ndarray]]
     # Set here.
+    poses: list[HandPose]
+    """Every pose the hand may take, the home pose first (:meth:`PlannerConfig.hand_poses`)."""
+    pose_index: int
+    """The pose in use (index into ``poses``): its arrays below, and its samples and lifted
+    postures in ``fingers``."""
+    wrist_angles: tuple[float, float]
+    pose_ty: float
+    pose_raise: float
     wrist_bent_up: float
     """How far (rad) the keys have bent the wrist up from its pose, measured each step."""
     rest_tips: np.ndarray
@@ -119,8 +164,25 @@ class HandPostures:
     reach: np.ndarray
     full_reach: np.ndarray
 
-    def choose_lift_posture(self, m, data, cfg: PlannerConfig) -> None:
-        """The lifted posture of each finger and the forearm offsets, from the samples."""
+    def use_pose(self, index: int) -> None:
+        """Bind pose ``index``'s wrist angles, samples, lifted postures and reach to the hand."""
+        if getattr(self, "pose_index", None) == index:
+            return
+        pose = self.poses[index]
+        self.pose_index = index
+        self.wrist_angles, self.pose_ty, self.pose_raise = pose.wrist, pose.ty, pose.raise_m
+        for finger, samples, lift in zip(self.fingers, pose.samples, pose.lift, strict=True):
+            finger.index_samples(*samples)
+            finger.lift = lift
+        self.rest_tips, self.lift_tips = pose.rest_tips, pose.lift_tips
+        self.tip_offset_y = pose.tip_offset_y
+        self.reach, self.full_reach = pose.reach, pose.full_reach
+
+    def make_pose(self, m, data, cfg: PlannerConfig, samples) -> HandPose:
+        """The lifted posture of each finger, the forearm offsets and the reach at the pose
+        ``wrist_angles`` / ``pose_ty``, from the fingers' ``samples`` (see :class:`HandPose`)."""
+        for finger, sample in zip(self.fingers, samples, strict=True):
+            finger.index_samples(*sample)
         # The lifted posture: the sample nearest the rest posture's fingertip, lifted clear.
         mujoco.mj_resetData(m, data)
         self.lower(data, cfg)
@@ -131,21 +193,38 @@ class HandPostures:
         mujoco.mj_kinematics(m, data)
         origin = data.xpos[self.forearm_body].copy()
         lift_z = C.WHITE_KEY_HEIGHT_M + cfg.lift_height_m + C.FINGERTIP_CAPSULE_RADIUS_M
-        self.rest_tips = data.site_xpos[self.sites] - origin
-        self.lift_tips = self.rest_tips.copy()
-        self.lift_tips[:, 2] = lift_z - origin[2]
+        rest_tips = data.site_xpos[self.sites] - origin
+        lift_tips = rest_tips.copy()
+        lift_tips[:, 2] = lift_z - origin[2]
         # Thumb: under the side of the palm, a little more than a key from the index finger.
         side = 1.0 if self.side == "right" else -1.0
-        self.lift_tips[0, 1] = self.rest_tips[1, 1] - side * cfg.thumb_offset_m
-        for f, finger in enumerate(self.fingers):
-            finger.lift = finger.samples[finger.nearest(self.lift_tips[f])]
+        lift_tips[0, 1] = rest_tips[1, 1] - side * cfg.thumb_offset_m
+        lift = [
+            finger.samples[finger.nearest(lift_tips[f])] for f, finger in enumerate(self.fingers)
+        ]
         # Forearm slide that puts finger f over a key at y: key y - tip_offset_y[f].
-        self.tip_offset_y = self.lift_tips[:, 1] + origin[1] - data.qpos[self.tx_qpos]
-        self.reach = self._reach(origin, data.qpos[self.tx_qpos], cfg.reach_margin, cfg)
-        self.full_reach = self._reach(origin, data.qpos[self.tx_qpos], 0.0, cfg)
+        tip_offset_y = lift_tips[:, 1] + origin[1] - data.qpos[self.tx_qpos]
+        slide = data.qpos[self.tx_qpos]
+        return HandPose(
+            wrist=self.wrist_angles,
+            ty=self.pose_ty,
+            raise_m=self.pose_raise,
+            samples=list(samples),
+            lift=lift,
+            rest_tips=rest_tips,
+            lift_tips=lift_tips,
+            tip_offset_y=tip_offset_y,
+            reach=self._reach(origin, slide, tip_offset_y, cfg.reach_margin, cfg),
+            full_reach=self._reach(origin, slide, tip_offset_y, 0.0, cfg),
+        )
 
     def _reach(
-        self, origin: np.ndarray, slide: float, margin: float, cfg: PlannerConfig
+        self,
+        origin: np.ndarray,
+        slide: float,
+        tip_offset_y: np.ndarray,
+        margin: float,
+        cfg: PlannerConfig,
     ) -> np.ndarray:
         """(5, 2, 2): per finger, for a white (0) and a black (1) key, the lowest and highest
         key y minus forearm slide at which the finger can press the key.
@@ -155,7 +234,7 @@ class HandPostures:
         A finger that never gets there (the thumb on a black key) gets its resting offset.
         """
         radius = C.FINGERTIP_CAPSULE_RADIUS_M
-        reach = np.repeat(self.tip_offset_y[:, None, None], 2, axis=1).repeat(2, axis=2)
+        reach = np.repeat(tip_offset_y[:, None, None], 2, axis=1).repeat(2, axis=2)
         for f, finger in enumerate(self.fingers):
             tips = finger.sample_tips + origin
             for black in (0, 1):
@@ -175,20 +254,25 @@ class HandPostures:
         return reach
 
     def lower(self, data, cfg: PlannerConfig) -> None:
-        """Put the forearm at its playing height in ``data`` (when it has a height slide)."""
+        """Put the forearm at its playing height (raised by the pose's) in ``data`` (when it
+        has a height slide), and at the pose's ``ty`` (when it has that slide)."""
         if self.tz_qpos is not None:
-            data.qpos[self.tz_qpos] = cfg.hand_height_m
+            data.qpos[self.tz_qpos] = cfg.hand_height_m + self.pose_raise
+        if self.ty_qpos is not None:
+            data.qpos[self.ty_qpos] = self.pose_ty
 
     def set_wrist(self, data, ctrl: np.ndarray | None, cfg: PlannerConfig) -> None:
-        """Put the wrist at its pose in ``data`` (the fingers are solved for it) and, given
-        ``ctrl`` (nu,), command it there (with feedback on how far it is off) and the joints
-        the reduced hand does without to 0."""
+        """Put the wrist at the pose's angles in ``data`` (the fingers are solved for it)
+        and, given ``ctrl`` (nu,), command it there (with feedback on how far it is off),
+        the forearm's ``ty`` to the pose's, and the joints the reduced hand does without
+        to 0."""
         if ctrl is not None:
             ctrl[self.held_actuators] = 0.0
-        pose = cfg.wrist_pose if self.tz_qpos is not None else cfg.wrist_pose_without_tz
+            if self.ty_actuator is not None:
+                ctrl[self.ty_actuator] = self.pose_ty
         self.wrist_bent_up = 0.0
         for i, ((actuator, qpos), angle, gain) in enumerate(
-            zip(self.wrist, pose, cfg.wrist_feedback, strict=False)
+            zip(self.wrist, self.wrist_angles, cfg.wrist_feedback, strict=False)
         ):
             off = float(np.mean(data.qpos[qpos])) - angle
             if i == 1:  # WRJ1, flexion: the keys push it negative (the hand bends up)
@@ -199,31 +283,40 @@ class HandPostures:
 
 
 #: Posture samples of every finger, (samples (S, dof), fingertips (S, 3)) per finger, keyed by
-#: the scene's options (the model is built from them deterministically) and the planner's
-#: config: sampling takes ~0.15 s, most of a short episode's reset, and is the same each time.
+#: the scene's options (the model is built from them deterministically), the planner's config
+#: and the pose: sampling takes ~0.15 s, most of a short episode's reset, and is the same
+#: each time.
 _Postures = list[tuple[np.ndarray, np.ndarray, scipy.spatial.cKDTree]]
-_POSTURES: dict[tuple[SceneOptions, PlannerConfig], _Postures] = {}
-_POSTURES_KEPT = 8  # scenes x configs kept per process (~2 MB each)
+_POSTURES: dict[tuple[SceneOptions, PlannerConfig, tuple[float, ...]], _Postures] = {}
+_POSTURES_KEPT = 24  # scenes x configs x poses kept per process (~2 MB each)
 
 
 def _use_postures(
     m, data, hands: Sequence[HandPostures], cfg: PlannerConfig, scene_options: SceneOptions
 ) -> None:
-    """Give every finger its posture samples (sampled once per scene and config, see
-    :data:`_POSTURES`), then choose each hand's lifted posture."""
-    key = (scene_options, cfg)
-    samples = _POSTURES.get(key)
-    if samples is None:
-        # The samples do not depend on the episode: always the same generator seed.
-        samples = _sample_postures(m, data, hands, cfg, np.random.default_rng(0))
-        if len(_POSTURES) >= _POSTURES_KEPT:
-            del _POSTURES[next(iter(_POSTURES))]
-        _POSTURES[key] = samples
-    fingers = [finger for hand in hands for finger in hand.fingers]
-    for finger, (angles, tips, tree) in zip(fingers, samples, strict=True):
-        finger.index_samples(angles, tips, tree)
+    """Give every hand its poses (:meth:`PlannerConfig.hand_poses`), each with its posture
+    samples (sampled once per scene, config and pose, see :data:`_POSTURES`), lifted
+    postures and reach, and put it in its home pose."""
+    has_tz = all(hand.tz_qpos is not None for hand in hands)
     for hand in hands:
-        hand.choose_lift_posture(m, data, cfg)
+        hand.poses = []
+        hand.__dict__.pop("pose_index", None)
+    for pose in cfg.hand_poses(has_tz):
+        for hand in hands:
+            hand.wrist_angles, hand.pose_ty, hand.pose_raise = (pose[0], pose[1]), *pose[2:]
+        key = (scene_options, cfg, pose)
+        samples = _POSTURES.get(key)
+        if samples is None:
+            # The samples do not depend on the episode: always the same generator seed.
+            samples = _sample_postures(m, data, hands, cfg, np.random.default_rng(0))
+            if len(_POSTURES) >= _POSTURES_KEPT:
+                del _POSTURES[next(iter(_POSTURES))]
+            _POSTURES[key] = samples
+        for h, hand in enumerate(hands):
+            mine = samples[h * FINGERS_PER_HAND : (h + 1) * FINGERS_PER_HAND]
+            hand.poses.append(hand.make_pose(m, data, cfg, mine))
+    for hand in hands:
+        hand.use_pose(0)
 
 
 def _sample_postures(

@@ -47,7 +47,7 @@ class FingerTargets:
     sites: np.ndarray
     forearm_body: int
     finger_offset: int
-    # Set by ``HandPostures.choose_lift_posture`` and the forearm plan.
+    # Set by ``HandPostures.use_pose`` and the forearm plan.
     lift_tips: np.ndarray
     free: np.ndarray
     shift_to: np.ndarray
