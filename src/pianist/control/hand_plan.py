@@ -73,16 +73,15 @@ class HandPlanCosts:
     pose_change_cost: float = 0.5
     """Cost of a change of the hand's pose (a reach pose, the wrist turned; see ``poses``
     in :func:`plan_hand`) on top of a shift's: the hand lands less surely after a turn."""
-    reach_pose_black_keys: bool = False
-    """Whether a pose other than the first plays black keys: with the wrist turned the
-    thumb reaches none, and octaves on black keys given to the index and little fingers
-    at the edge of their reach failed (a Clara Schumann polonaise's bass, turned: 53 % of
-    its keys lost against 31 % straight)."""
     reach_pose_loss: float = 0.05
     """The share of a hand's keys a pose other than the first (the wrist turned) is counted
     to lose at every frame where it is wanted: a chord struck together that the first pose
     covers from no position (a block octave: one key of two lost straight, against 2 x this
     turned) ..."""
+    reach_pose_window: int = 3
+    """Frames before and after a chord that wants a reach pose in which the plan may keep
+    a hand in it (elsewhere the pose is not a candidate, so a piece without such chords
+    is planned as fast as with one pose)."""
     reach_pose_idle_loss: float = 1.0
     """... and at every other frame (keys held from earlier among them, or a chord the first
     pose covers): fingers at the edge of the turned hand's reach land less surely, and in
@@ -209,10 +208,6 @@ def plan_hand(
     if full_k.ndim == 3:
         full_k, reach_k, rest_k = full_k[None], reach_k[None], rest_k[None]
     K = full_k.shape[0]
-    if K > 1 and not c.reach_pose_black_keys:
-        # No finger reaches a black key in the other poses: an empty interval.
-        full_k, reach_k = full_k.copy(), reach_k.copy()
-        full_k[1:, :, 1], reach_k[1:, :, 1] = (np.inf, -np.inf), (np.inf, -np.inf)
     mine = keys & (fingers >= 0)
     busy = np.asarray(mine.any(axis=1))
     skip = np.zeros(keys.shape, dtype=bool)
@@ -227,12 +222,33 @@ def plan_hand(
     P = len(grid)
     weights = _voice_weights(frames, offset, T, outer, c.outer_voice_weight)
     # Every candidate is a position in a pose: (T, K * P), pose-major.
+    # The hand moves only where its keys change: frames with the same keys form one segment.
+    starts = np.flatnonzero(np.r_[True, (mine[1:] != mine[:-1]).any(axis=1)])
+    segment = np.cumsum(np.isin(np.arange(T), starts)) - 1  # (T,) each frame's segment
     stays, centres = [], []
     for q in range(K):
+        if q == 1:
+            # A reach pose is wanted for a chord struck together that the first pose cannot
+            # cover, and is a candidate only in the segments near such chords (its costs
+            # are needed nowhere else).
+            wanted = _struck_together(mine) & (stays[0].min(axis=1) >= 0.5)
+            window = np.ones(2 * c.reach_pose_window + 1)
+            near = np.convolve(wanted, window, mode="same") > 0
+            near = np.isin(segment, segment[near])
+        keep = slice(None) if q == 0 else near[frames]
         if refinger:
             stays.append(
                 _matching_costs(
-                    frames, key_ids, key_y, black, weights, full_k[q], reach_k[q], grid, T, c
+                    frames[keep],
+                    key_ids[keep],
+                    key_y,
+                    black,
+                    weights[keep],
+                    full_k[q],
+                    reach_k[q],
+                    grid,
+                    T,
+                    c,
                 )
             )
             centres.append(np.full(len(frames), rest_k[q][rest_k.shape[1] // 2]))
@@ -242,11 +258,11 @@ def plan_hand(
             lo_in, hi_in = reach_k[q][finger_ids, colour].T
             stays.append(_stay_costs(frames, offset, lo, hi, lo_in, hi_in, weights, grid, T, c))
             centres.append(rest_k[q][finger_ids])
+    if K == 1:
+        wanted = near = np.zeros(T, dtype=bool)
     frame_cost = np.zeros(T)  # what losing all the hand's keys at a frame costs
     np.add.at(frame_cost, frames, weights)
     stay = np.concatenate(stays, axis=1)
-    # A reach pose is wanted for a chord struck together that the first pose cannot cover.
-    wanted = _struck_together(mine) & (stay[:, :P].min(axis=1) >= 0.5)
     loss = np.where(wanted, c.reach_pose_loss, c.reach_pose_idle_loss)
     stay[:, P:] += (loss * frame_cost)[:, None]
     if c.objective == "step_f1":
@@ -268,9 +284,7 @@ def plan_hand(
     lost = np.r_[0.0, np.cumsum(frame_cost)]  # lost[t]: the cost of frames before t lost
     held = np.zeros(T)  # keys of the hand due at both t - 1 and t
     held[1:] = (mine[1:] & mine[:-1]).sum(axis=1)
-    # The hand moves only where its keys change: frames with the same keys form one segment.
-    starts = np.flatnonzero(np.r_[True, (mine[1:] != mine[:-1]).any(axis=1)])
-    path, total = _viterbi(stay, lost, held, starts, grid, K, start, dt, c, pose_frames)
+    path, total = _viterbi(stay, lost, held, starts, grid, K, start, dt, c, pose_frames, near)
     position, pose = grid[path % P], path // P
     # Frames without notes hold the next note's place; after the last note, stay.
     known = np.flatnonzero(busy)
@@ -430,6 +444,8 @@ def _matching_costs(
     """(T, P) weighted key-frames each candidate loses when the plan picks the fingers."""
     order = finger_order(full_reach)
     stay = np.zeros((T, len(grid)))
+    if frames.size == 0:
+        return stay
     cache: dict[tuple[int, ...], np.ndarray] = {}
     bounds = np.flatnonzero(np.diff(frames)) + 1
     for group in np.split(np.arange(len(frames)), bounds):
@@ -620,43 +636,70 @@ def _viterbi(
     dt: float,
     c: HandPlanCosts,
     pose_frames: int,
+    reach_frames: np.ndarray,
 ) -> tuple[np.ndarray, float]:
     """The cheapest path of candidate indices (T,) and its cost; the hand may move only at
     the ``starts`` of segments (frame indices, the first 0). Candidate i is position
-    ``grid[i % P]`` in pose ``i // P`` (``stay`` (T, poses * P)); the hand starts in pose 0."""
+    ``grid[i % P]`` in pose ``i // P`` (``stay`` (T, poses * P)); the hand starts in pose 0,
+    and poses other than 0 are candidates only in segments that hold a ``reach_frames``
+    (T,) bool frame.
+
+    A change of pose is made with the fingers lifted, like a shift, in the wrist's
+    ``pose_frames``; the slide moves meanwhile, as far as it gets in those frames (a longer
+    jump with a turn is not a candidate)."""
     T, Q = stay.shape
     P = len(grid)
-    positions = np.tile(grid, poses)
-    pose_of = np.repeat(np.arange(poses), P)
-    distance = np.abs(positions[:, None] - positions[None, :])  # (from, to)
-    turn = pose_of[:, None] != pose_of[None, :]
-    # A change of pose is made with the fingers lifted, like a shift, and takes at least
-    # the wrist's frames.
-    shift = (distance > c.shift_m) | turn
-    frames_needed = move_frames(distance, dt, c.slide_acceleration_m_s2)  # (Q, Q)
-    frames_needed = np.where(turn, np.maximum(frames_needed, pose_frames), frames_needed)
+    distance = np.abs(grid[:, None] - grid[None, :])  # (from, to), within a pose
+    shift = distance > c.shift_m
+    frames_needed = move_frames(distance, dt, c.slide_acceleration_m_s2)  # (P, P)
     moved = distance > 1e-9
     small = np.where(moved, c.small_move_cost + c.small_move_cost_per_m * distance, 0.0)
-    shift_cost = c.shift_cost + turn * c.pose_change_cost
+    # The slide's reach in the frames a turn takes, in grid steps either way.
+    turn_reach_m = 0.25 * c.slide_acceleration_m_s2 * (pose_frames * dt) ** 2
+    half = int(np.floor(turn_reach_m / (grid[1] - grid[0]) + 1e-9)) if P > 1 else 0
     # The hand comes from its start position: until the slide can have got to a candidate,
     # being there plays none of the frame's keys. (Q,): the first frame it can be there.
-    arrival = move_frames(np.abs(positions - start), dt, c.slide_acceleration_m_s2)
-    arrival = np.where(pose_of > 0, np.maximum(arrival, pose_frames), arrival) - 1
+    arrival = move_frames(np.abs(grid - start), dt, c.slide_acceleration_m_s2)
+    arrival = np.concatenate([arrival, *[np.maximum(arrival, pose_frames)] * (poses - 1)]) - 1
     every_key = lost[1:] - lost[:-1]  # (T,) weight of all the keys due at each frame
     early = np.arange(T)[:, None] < arrival[None, :]
     stay = np.where(early, every_key[:, None], stay)
     segment_stay = np.add.reduceat(stay, starts, axis=0)  # (S, Q)
     S = len(starts)
+    # The poses that are candidates in each segment: all where a reach pose may be wanted,
+    # else pose 0 (the others cost infinitely much there).
+    reach_segment = np.add.reduceat(reach_frames.astype(int), starts) > 0
+    count = np.where(reach_segment, poses, 1)
     value = segment_stay[0].copy()
+    value[count[0] * P :] = np.inf
     back = np.zeros((S, Q), dtype=np.int32)
     for s in range(1, S):
         t = starts[s]
         # Key-frames a shift into frame t loses: those of the frames it needs before t.
         before = lost[t] - lost[np.maximum(t - frames_needed, 0)]
-        move = np.where(shift, before + shift_cost, small + moved * held[t] * c.held_move_cost)
-        total = value[:, None] + move
-        back[s] = np.argmin(total, axis=0)
-        value = total[back[s], np.arange(Q)] + segment_stay[s]
+        move = np.where(shift, before + c.shift_cost, small + moved * held[t] * c.held_move_cost)
+        turn_cost = lost[t] - lost[max(t - pose_frames, 0)] + c.shift_cost + c.pose_change_cost
+        new = np.full(Q, np.inf)
+        for b in range(count[s]):
+            here = slice(b * P, (b + 1) * P)
+            total = value[here, None] + move  # staying in pose b
+            best = np.argmin(total, axis=0)
+            new[here] = total[best, np.arange(P)]
+            back[s, here] = best + b * P
+            for a in range(count[s - 1]):
+                if a == b:
+                    continue
+                # Turning from pose a: the cheapest candidate of a within the slide's reach.
+                padded = np.pad(value[a * P : (a + 1) * P], half, constant_values=np.inf)
+                windows = np.lib.stride_tricks.sliding_window_view(padded, 2 * half + 1)
+                source = np.argmin(windows, axis=1)  # (P,) offset within each window
+                turned = windows[np.arange(P), source] + turn_cost
+                better = turned < new[here]
+                new[here] = np.where(better, turned, new[here])
+                origin = a * P + np.arange(P) + source - half
+                back[s, here] = np.where(better, origin, back[s, here])
+            new[here] += segment_stay[s, here]
+        value = new
     choice = np.empty(S, dtype=np.int64)
     choice[-1] = int(np.argmin(value))
     for s in range(S - 1, 0, -1):
