@@ -225,7 +225,8 @@ def plan_hand(
     # The hand moves only where its keys change: frames with the same keys form one segment.
     starts = np.flatnonzero(np.r_[True, (mine[1:] != mine[:-1]).any(axis=1)])
     segment = np.cumsum(np.isin(np.arange(T), starts)) - 1  # (T,) each frame's segment
-    stays, centres = [], []
+    stays: list[np.ndarray] = []
+    centres: list[np.ndarray] = []
     for q in range(K):
         if q == 1:
             # A reach pose is wanted for a chord struck together that the first pose cannot
