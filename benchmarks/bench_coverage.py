@@ -3,26 +3,27 @@
 For every song (``pianist.control.coverage``; one reset of the default planner per song):
 
 - the **ceiling**: the recall and F1 of a player that presses, at every frame, every due key
-  some placement of the two hands lets a finger press, and nothing else: every frame on its
-  own (no travel time), by the fingers' sampled reach widened by the planner's
-  ``playable_tolerance_m``, scored per step as the metrics score;
+  some placement of the two hands, each in its best pose of ``WHOLE_HAND_POSES``, lets a
+  finger press, and nothing else: every frame on its own (no travel time), by the fingers'
+  sampled reach widened by the planner's ``playable_tolerance_m``, scored per step as the
+  metrics score; and beside it the same with the wrists straight (``straight F1``);
 - the **plan**: the shares left out (no finger sent), in a shift (the hand's fingers lifted
   while it travels) and playable, and the plan's F1 (a player that sounds exactly the
   playable key-frames: what the plan leaves to execution);
 - with ``--play``, one episode of the planner (seed 0): its recall and F1;
 - with ``--practice JSON`` (``bench_practice.py``'s output), the practised recall and F1;
-- with ``--what-if``, the ceiling for hands that could do more than these: the thumb on a
-  black key (given its white-key reach there), the wrist turned towards the little finger
-  and flexed (``WHAT_IF_WRIST``, rad) at the frames where that reaches more, and both.
+- with ``--what-if``, the straight-wrist ceiling for hands that could do more: the thumb on
+  a black key (given its white-key reach there), the wrist turned and flexed
+  (``WHAT_IF_WRIST``, rad) at the frames where that reaches more, and both.
 - with ``--plan-variants``, the plan's F1 (its bound: no controller that follows it can
   pass it) for the default's whole-piece plan and for that plan with one thing changed
   (``PLAN_VARIANTS``: moves that take no time or a quicker slide, a looser reach model,
   closer forearms, cheaper moves, no cost at the edge of a finger's reach, the other
   whole-piece plans), each made at a reset with no episode played.
 
-The ceiling bounds every controller with these hands' reach at their straight-wrist pose: a
-controller can pass the plan's playable share (the reach model is a little conservative)
-but not, by more than the tolerance, the ceiling.
+The ceiling bounds every controller with these hands' reach in those poses: a controller can
+pass the plan's playable share (the reach model is a little conservative) but not, by more
+than the tolerance, the ceiling.
 
 Run: ``python benchmarks/bench_coverage.py [--suite open-etude-12 | --songs a,b]
 [--physics fast] [--play] [--practice practice.json] [--what-if] [--plan-variants]
@@ -178,7 +179,8 @@ def main() -> None:
         with open(args.practice) as f:
             practised = json.load(f)["songs"]
     header = (
-        f"{'song':40s} {'due':>5s} {'ceiling R':>9s} {'ceiling F1':>10s} {'left out':>8s} "
+        f"{'song':40s} {'due':>5s} {'ceiling R':>9s} {'ceiling F1':>10s} {'straight F1':>11s} "
+        f"{'left out':>8s} "
         f"{'in shift':>8s} {'playable':>8s} {'plan F1':>7s}"
     )
     if args.play:
@@ -195,7 +197,8 @@ def main() -> None:
         rows[name] = row
         line = (
             f"{name[:40]:40s} {row['due']:5d} {row['ceiling_recall']:9.3f} "
-            f"{row['ceiling_f1']:10.3f} {row['left_out_share']:8.3f} "
+            f"{row['ceiling_f1']:10.3f} {row['straight_ceiling_f1']:11.3f} "
+            f"{row['left_out_share']:8.3f} "
             f"{row['in_shift_share']:8.3f} {row['playable_share']:8.3f} {row['plan_f1']:7.3f}"
         )
         if args.play:

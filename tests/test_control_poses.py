@@ -213,3 +213,14 @@ def test_reach_poses_are_checked():
         PlannerConfig(reach_poses=((-0.44, 0.28),))  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="pose_change_s"):
         PlannerConfig(pose_change_s=0.0)
+
+
+def test_a_chord_struck_together_is_told_from_one_over_a_held_key():
+    from pianist.control.hand_plan import _struck_together
+
+    mine = np.zeros((8, 88), dtype=bool)
+    mine[0:4, [39, 51]] = True  # an octave ...
+    mine[3:6, [41, 53]] = True  # ... the next one overlapping it by a frame (legato)
+    mine[6:8, 39] = True  # a long note ...
+    mine[7, 51] = True  # ... and a key struck over it
+    assert _struck_together(mine).tolist() == [True] * 6 + [True, False]

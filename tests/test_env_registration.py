@@ -15,13 +15,14 @@ from pianist.music import list_songs
 
 
 def _builtin() -> list[str]:
-    return list_songs() + list_songs("robopianist-debug") + list_songs("open-etude-12")
+    suites = ("debug", "robopianist-debug", "octaves", "open-etude-12")
+    return [song for suite in suites for song in list_songs(suite)]
 
 
 def test_every_song_is_registered() -> None:
     songs = _builtin()
     assert len(songs) >= 24 and "twinkle-twinkle" in songs and "joplin-maple-leaf-rag" in songs
-    assert "CMajorChordProgressionTwoHands" in songs
+    assert "CMajorChordProgressionTwoHands" in songs and "block-octaves" in songs
     for song in songs:
         spec = gym.spec(f"pianist/{song}-v0")
         assert spec.kwargs["song"] == song

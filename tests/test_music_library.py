@@ -219,3 +219,31 @@ def test_a_malformed_tune_reference_of_an_existing_book_says_so(tmp_path, refere
         load_song(f"{book}#{reference}")
     with pytest.raises(MidiFileError, match="file not found"):  # no such book: as before
         load_song(f"{tmp_path / 'none.abc'}#{reference}")
+
+
+def test_the_octaves_suite_stretches_each_hand_an_octave_or_a_seventh() -> None:
+    names = list_songs("octaves")
+    assert names == [
+        "block-octaves",
+        "broken-octaves",
+        "stride-bass",
+        "octave-chords",
+        "seventh-chords",
+        "octave-melody",
+    ]
+    for name in names:
+        song = load_song(name)
+        assert song.name == name and all(n.finger is not None for n in song.notes)
+        assert "(octaves)" in song_description(name)
+        # Described note counts are the songs' own.
+        assert f"{len(song.notes)} notes" in song_description(name)
+        # Every note on a white key: the turned hand plays no black key.
+        assert all(n.pitch % 12 in (0, 2, 4, 5, 7, 9, 11) for n in song.notes)
+        # Somewhere one hand spans a seventh or more within a quarter of a second.
+        widest = 0
+        for hand in ("right", "left"):
+            notes = [n for n in song.notes if n.hand == hand]
+            for n in notes:
+                close = [m.pitch for m in notes if abs(m.onset_s - n.onset_s) <= 0.25]
+                widest = max(widest, max(close) - min(close))
+        assert widest >= 10, name

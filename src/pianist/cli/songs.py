@@ -21,10 +21,16 @@ class Songs:
     """List songs with their size and difficulty: duration, notes, notes/s, span, polyphony."""
 
     suite: Literal[
-        "all", "debug", "robopianist-debug", "open-etude-12", "etude-12", "repertoire-150"
+        "all",
+        "debug",
+        "robopianist-debug",
+        "octaves",
+        "open-etude-12",
+        "etude-12",
+        "repertoire-150",
     ] = "all"
-    """Which suite: the debug songs, the original's debug songs note for note, the shipped open
-    library, or imported PIG pieces."""
+    """Which suite: the debug songs, the original's debug songs note for note, pieces at an
+    octave's stretch, the shipped open library, or imported PIG pieces."""
 
     def run(self) -> None:
         from pianist.music import SUITES, PigDatasetError, list_songs, load_song, song_stats

@@ -73,7 +73,7 @@ class HandPlanCosts:
     pose_change_cost: float = 0.5
     """Cost of a change of the hand's pose (a reach pose, the wrist turned; see ``poses``
     in :func:`plan_hand`) on top of a shift's: the hand lands less surely after a turn."""
-    reach_pose_loss: float = 0.05
+    reach_pose_loss: float = 0.02
     """The share of a hand's keys a pose other than the first (the wrist turned) is counted
     to lose at every frame where it is wanted: a chord struck together that the first pose
     covers from no position (a block octave: one key of two lost straight, against 2 x this
@@ -233,8 +233,8 @@ def plan_hand(
             # cover, and is a candidate only in the segments near such chords (its costs
             # are needed nowhere else).
             wanted = _struck_together(mine) & (stays[0].min(axis=1) >= 0.5)
-            window = np.ones(2 * c.reach_pose_window + 1)
-            near = np.convolve(wanted, window, mode="same") > 0
+            w = c.reach_pose_window
+            near = np.convolve(wanted, np.ones(2 * w + 1))[w : w + T] > 0  # within w frames
             near = np.isin(segment, segment[near])
         keep = slice(None) if q == 0 else near[frames]
         if refinger:
@@ -316,13 +316,18 @@ def plan_hand(
 
 def _struck_together(mine: np.ndarray) -> np.ndarray:
     """(T,) bool: frames whose due keys (``mine`` (T, 88)) all began at the same frame (a
-    chord struck together, none held from before it); False where none is due."""
+    chord struck together, none held from before it); False where none is due. Keys in
+    their last frame are not counted while others go on (a legato step from one chord to
+    the next overlaps them by a frame)."""
+    T = mine.shape[0]
     began = mine & ~np.vstack([np.zeros((1, mine.shape[1]), dtype=bool), mine[:-1]])
+    going_on = mine & np.vstack([mine[1:], np.zeros((1, mine.shape[1]), dtype=bool)])
+    counted = np.where(going_on.any(axis=1)[:, None], going_on, mine)
     # Each due key's note began at the last frame it began at (or before): its start frame.
-    start = np.where(began, np.arange(mine.shape[0])[:, None], -1)
+    start = np.where(began, np.arange(T)[:, None], -1)
     start = np.maximum.accumulate(start, axis=0)
-    first = np.where(mine, start, np.iinfo(np.int64).max).min(axis=1)
-    last = np.where(mine, start, -1).max(axis=1)
+    first = np.where(counted, start, np.iinfo(np.int64).max).min(axis=1)
+    last = np.where(counted, start, -1).max(axis=1)
     return mine.any(axis=1) & (first == last)
 
 

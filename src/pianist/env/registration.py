@@ -11,7 +11,7 @@ from __future__ import annotations
 import gymnasium as gym
 
 from pianist.music import OPEN_SUITE, list_songs
-from pianist.music.library import ORIGINAL_DEBUG_SUITE
+from pianist.music.library import OCTAVE_SUITE, ORIGINAL_DEBUG_SUITE
 
 NAMESPACE = "pianist"
 VERSION = 0
@@ -37,7 +37,12 @@ def original_env_id(song: str) -> str:
 def register_envs() -> list[str]:
     """Register every built-in song (idempotent) and return the ids."""
     ids = []
-    songs = list_songs("debug") + list_songs(ORIGINAL_DEBUG_SUITE) + list_songs(OPEN_SUITE)
+    songs = [
+        *list_songs("debug"),
+        *list_songs(ORIGINAL_DEBUG_SUITE),
+        *list_songs(OCTAVE_SUITE),
+        *list_songs(OPEN_SUITE),
+    ]
     plain: dict[str, object] = {}
     dynamics: dict[str, object] = {"velocity_goal": True}
     named = [(env_id(song), song, plain) for song in songs]

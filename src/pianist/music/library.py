@@ -47,6 +47,7 @@ from pianist.music.pig_dataset import (
     pig_dataset_imported,
 )
 from pianist.music.pitch import name_to_pitch
+from pianist.music.stretch import OCTAVE_SONGS, OCTAVE_SUITE
 
 _MAJOR_STEPS = (0, 2, 4, 5, 7, 9, 11, 12)  # semitones above the tonic, one octave
 # Standard one-octave major-scale fingerings (C, D, ... share them), ascending.
@@ -222,7 +223,7 @@ _SONGS: dict[str, tuple[str, Callable[[], list[Note]]]] = {
 
 #: Suites :func:`list_songs` knows: the debug songs, the original's debug songs, the shipped
 #: open library, and the PIG-based suites of the paper (once ``pianist import-pig`` has run).
-SUITES = ("debug", ORIGINAL_DEBUG_SUITE, OPEN_SUITE, *PIG_SUITES)
+SUITES = ("debug", ORIGINAL_DEBUG_SUITE, OCTAVE_SUITE, OPEN_SUITE, *PIG_SUITES)
 
 
 def list_songs(suite: str | None = None) -> list[str]:
@@ -230,7 +231,8 @@ def list_songs(suite: str | None = None) -> list[str]:
 
     Args:
         suite: None or "debug" (the debug songs), "robopianist-debug" (the original's debug
-            songs note for note), "open-etude-12" (the shipped open library), "etude-12" or
+            songs note for note), "octaves" (pieces at an octave's stretch,
+            :mod:`pianist.music.stretch`), "open-etude-12" (the shipped open library), "etude-12" or
             "repertoire-150" (imported PIG pieces).
 
     Raises:
@@ -241,6 +243,8 @@ def list_songs(suite: str | None = None) -> list[str]:
         return list(_SONGS)
     if suite == ORIGINAL_DEBUG_SUITE:
         return list(_ORIGINAL_SONGS)
+    if suite == OCTAVE_SUITE:
+        return list(OCTAVE_SONGS)
     if suite == OPEN_SUITE:
         return list_open_songs()
     if suite in PIG_SUITES:
@@ -249,7 +253,7 @@ def list_songs(suite: str | None = None) -> list[str]:
 
 
 def _unknown(name: str) -> UnknownSongError:
-    known = list(_SONGS) + list(_ORIGINAL_SONGS) + list_open_songs()
+    known = list(_SONGS) + list(_ORIGINAL_SONGS) + list(OCTAVE_SONGS) + list_open_songs()
     close = difflib.get_close_matches(name, known, n=3, cutoff=0.5)
     hint = f"did you mean {', '.join(close)}? " if close else ""
     pig = ""
@@ -274,6 +278,8 @@ def song_description(name: str) -> str:
     """
     if name in _SONGS:
         return _SONGS[name][0]
+    if name in OCTAVE_SONGS:
+        return f"{OCTAVE_SONGS[name][0]} ({OCTAVE_SUITE})"
     original = _original_name(name)
     if original is not None:
         return f"{_ORIGINAL_SONGS[original][0]} ({ORIGINAL_DEBUG_SUITE})"
@@ -294,6 +300,8 @@ def get_song(name: str) -> Song:
     """
     if name in _SONGS:
         return Song(notes=tuple(_SONGS[name][1]()), name=name)
+    if name in OCTAVE_SONGS:
+        return Song(notes=tuple(OCTAVE_SONGS[name][1]()), name=name)
     original = _original_name(name)
     if original is not None:
         return Song(notes=tuple(_ORIGINAL_SONGS[original][1]()), name=original)
@@ -361,7 +369,8 @@ def _load_song(
     if isinstance(name_or_path, Song):
         return name_or_path
     text = os.fspath(name_or_path)
-    if isinstance(name_or_path, str) and (text in _SONGS or _original_name(text) is not None):
+    builtin = text in _SONGS or text in OCTAVE_SONGS or _original_name(text) is not None
+    if isinstance(name_or_path, str) and builtin:
         return get_song(text)
     if isinstance(name_or_path, str) and text in list_open_songs():
         return load_open_song(text)

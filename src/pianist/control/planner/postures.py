@@ -106,7 +106,8 @@ def _rest_angles(m, finger: Finger) -> np.ndarray:
 
 @dataclass(frozen=True)
 class HandPose:
-    """One pose of a hand (wrist angles and forearm ``ty``) and what its fingers do in it."""
+    """One pose of a hand (wrist angles, the forearm's ``ty`` and height) and what its fingers do
+    in it."""
 
     wrist: tuple[float, float]
     """WRJ2 (sideways; negative turns the hand towards its thumb) and WRJ1 (flexion), rad."""
@@ -166,7 +167,7 @@ class HandPostures:
 
     def use_pose(self, index: int) -> None:
         """Bind pose ``index``'s wrist angles, samples, lifted postures and reach to the hand."""
-        if getattr(self, "pose_index", None) == index:
+        if getattr(self, "pose_index", None) == index:  # (none bound before the first call)
             return
         pose = self.poses[index]
         self.pose_index = index

@@ -1,0 +1,86 @@
+"""The whole hand against the straight wrist: the planner with and without reach poses.
+
+For every song (default: the ``octaves`` suite, pieces at an octave's stretch) and physics
+preset, one episode (seed 0, automatic fingering as ``pianist play``) of the default planner,
+whose whole-piece plan may turn a hand's wrist (``PlannerConfig.reach_poses``), and one of
+the same planner with the wrist held straight (``reach_poses=()``):
+
+- F1 of each, and their difference;
+- ``turned``: the share of the due key-frames the default's plan plays with a wrist turned;
+- the reach ceiling of the whole hand (``reach_ceiling_f1``: every pose of
+  ``WHOLE_HAND_POSES``) and of the straight wrist (``reach_ceiling_straight_f1``), each the
+  most any controller scores with that model of the hands (the same for both planners).
+
+Run: ``python benchmarks/bench_reach.py [--suite octaves | --songs a,b]
+[--presets faithful,fast] [--json out.json]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+import numpy as np
+
+from pianist.control.planner import IKPlanner, PlannerConfig
+from pianist.eval.session import play
+
+from arguments import preset_list, song_list  # isort: skip  (beside this script)
+
+VARIANTS = {"whole hand": PlannerConfig(), "straight": PlannerConfig(reach_poses=())}
+
+
+def row(name: str, physics: str) -> dict[str, float]:
+    """Both planners' F1 on one song and preset, the turned share and the two ceilings."""
+    out: dict[str, float] = {}
+    for label, config in VARIANTS.items():
+        planner = IKPlanner(config)
+        result = play(name, planner, physics=physics, seed=0)
+        out[f"{label} f1"] = float(result.metrics["f1"])
+        if label == "whole hand":
+            due = planner.goal.keys
+            turned = np.zeros(due.shape, dtype=bool)
+            for hand in planner.hands:
+                local = planner.fingers - hand.finger_offset
+                mine = due & (local >= 0) & (local < 5)
+                turned |= mine & (hand.pose_plan > 0)[:, None]
+            out["turned share"] = float(turned.sum() / max(due.sum(), 1))
+            out["ceiling f1"] = float(result.metrics["reach_ceiling_f1"])
+            out["straight ceiling f1"] = float(result.metrics["reach_ceiling_straight_f1"])
+    out["gain"] = out["whole hand f1"] - out["straight f1"]
+    return out
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--suite", default="octaves")
+    parser.add_argument("--songs", default=None, help="comma-separated songs (instead of --suite)")
+    parser.add_argument("--presets", default="faithful,fast")
+    parser.add_argument("--json", default=None, help="also write the results to this file")
+    args = parser.parse_args()
+    names = song_list(parser, args.songs, args.suite)
+    presets = preset_list(parser, args.presets)
+    columns = ("whole hand f1", "straight f1", "gain", "turned share", "ceiling f1")
+    columns += ("straight ceiling f1",)
+    print(f"{'song':32s} {'preset':8s} " + " ".join(f"{c:>19s}" for c in columns))
+    results: dict[str, dict[str, dict[str, float]]] = {preset: {} for preset in presets}
+    for preset in presets:
+        for name in names:
+            values = row(name, preset)
+            results[preset][name] = values
+            cells = " ".join(f"{values[c]:19.3f}" for c in columns)
+            print(f"{name[:32]:32s} {preset:8s} {cells}", flush=True)
+    means = {
+        preset: {c: float(np.mean([r[c] for r in rows.values()])) for c in columns}
+        for preset, rows in results.items()
+    }
+    for preset, mean in means.items():
+        print(f"{'mean':32s} {preset:8s} " + " ".join(f"{mean[c]:19.3f}" for c in columns))
+    if args.json:
+        settings = {"suite": None if args.songs else args.suite, "presets": presets}
+        with open(args.json, "w") as f:
+            json.dump({"settings": settings, "mean": means, "songs": results}, f, indent=1)
+
+
+if __name__ == "__main__":
+    main()
