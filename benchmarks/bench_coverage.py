@@ -1,6 +1,6 @@
 """How much of each piece the hands can play: the reach ceiling, the plan, and the playing.
 
-For every song (``pianist.control.coverage``; one reset of the default planner per song):
+For every song (``pianist.control.planner.coverage``; one reset of the default planner per song):
 
 - the **ceiling**: the recall and F1 of a player that presses, at every frame, every due key
   some placement of the two hands, each in its best pose of ``WHOLE_HAND_POSES``, lets a
@@ -39,16 +39,16 @@ from dataclasses import replace
 
 import numpy as np
 
-from pianist.control.coverage import (
+from pianist.control.planner import IKPlanner, PlannerConfig
+from pianist.control.planner.coverage import (
     ceiling_scores,
     plan_coverage,
     plan_f1,
     plan_key_classes,
     planner_ceiling,
 )
-from pianist.control.hand_plan import HandPlanCosts
-from pianist.control.hand_split import HandReach
-from pianist.control.planner import IKPlanner, PlannerConfig
+from pianist.control.planner.hand_plan import HandPlanCosts
+from pianist.control.planner.hand_split import HandReach
 from pianist.eval.session import make_env, play
 from pianist.music import load_song
 

@@ -3,7 +3,7 @@
 For every song and physics preset: each plan of :data:`pianist.control.planner.config.
 PLAN_CANDIDATES` played once on its own (seed 0; the planner with ``hand_planning`` set to
 it), with what its plan promises beside what it plays: the share of the due key-frames it
-leaves playable and its plan F1 (:func:`pianist.control.coverage.plan_f1`: a player sounding
+leaves playable and its plan F1 (:func:`pianist.control.planner.coverage.plan_f1`: a player sounding
 exactly those key-frames). Then the choosers (:data:`CHOOSERS`): the default planner
 (``choose_plan="rehearsal"``: the best rehearsed of ``best_candidates``), the same
 rehearsing the three candidates it used to (``rehearsal-3``), and the chooser before
@@ -24,9 +24,9 @@ import time
 
 import numpy as np
 
-from pianist.control.coverage import plan_coverage
 from pianist.control.planner import IKPlanner, PlannerConfig, forget_plans
 from pianist.control.planner.config import PLAN_CANDIDATES
+from pianist.control.planner.coverage import plan_coverage
 from pianist.eval import run_episode
 from pianist.eval.session import make_env
 from pianist.music import list_songs

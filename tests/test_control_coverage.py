@@ -5,14 +5,14 @@ import itertools
 import numpy as np
 import pytest
 
-from pianist.control.coverage import (
+from pianist.control.planner import ENV_OPTIONS, IKPlanner
+from pianist.control.planner.coverage import (
     ceiling_scores,
     frame_ceiling,
     plan_coverage,
     playable_mask,
 )
-from pianist.control.hand_split import HandReach
-from pianist.control.planner import ENV_OPTIONS, IKPlanner
+from pianist.control.planner.hand_split import HandReach
 from pianist.env import PianoEnv
 from pianist.eval.metrics import precision_recall_f1
 from pianist.eval.session import play

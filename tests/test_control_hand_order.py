@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from pianist.control.hand_order import uncross_hands
+from pianist.control.planner.hand_order import uncross_hands
 
 KEY_Y = np.arange(88) * 0.0235 - 1.0  # ascending with pitch, as the piano's key sites
 

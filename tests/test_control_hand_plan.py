@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from pianist.control.hand_plan import (
+from pianist.control.planner.hand_plan import (
     HandPlanCosts,
     finger_order,
     move_frames,

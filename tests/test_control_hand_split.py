@@ -2,8 +2,8 @@
 
 import numpy as np
 
-from pianist.control.hand_plan import HandPlanCosts
-from pianist.control.hand_split import LEFT, RIGHT, HandReach, SplitCosts, split_hands
+from pianist.control.planner.hand_plan import HandPlanCosts
+from pianist.control.planner.hand_split import LEFT, RIGHT, HandReach, SplitCosts, split_hands
 
 DT = 0.05
 PITCH_M = 0.0235  # one white key

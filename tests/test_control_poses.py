@@ -3,10 +3,10 @@
 import numpy as np
 import pytest
 
-from pianist.control.coverage import ceiling_scores, frame_ceiling
-from pianist.control.hand_plan import HandPlanCosts, plan_hand
-from pianist.control.hand_split import HandReach
 from pianist.control.planner import ENV_OPTIONS, IKPlanner, PlannerConfig
+from pianist.control.planner.coverage import ceiling_scores, frame_ceiling
+from pianist.control.planner.hand_plan import HandPlanCosts, plan_hand
+from pianist.control.planner.hand_split import HandReach
 from pianist.env import PianoEnv
 from pianist.eval import per_step_precision_recall_f1, run_episode
 from pianist.music import Note, Song
@@ -216,7 +216,7 @@ def test_reach_poses_are_checked():
 
 
 def test_a_chord_struck_together_is_told_from_one_over_a_held_key():
-    from pianist.control.hand_plan import _struck_together
+    from pianist.control.planner.hand_plan import _struck_together
 
     mine = np.zeros((8, 88), dtype=bool)
     mine[0:4, [39, 51]] = True  # an octave ...

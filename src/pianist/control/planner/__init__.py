@@ -3,7 +3,7 @@
 At reset it plans where each forearm will be along the keyboard over the whole piece, either
 frame by frame with the song's fingering (the hand goes where the assigned fingers reach
 their keys, and stays while they still do) or over the whole piece at once
-(:mod:`pianist.control.hand_plan`: a dynamic programme that also chooses the fingers the
+(:mod:`pianist.control.planner.hand_plan`: a dynamic programme that also chooses the fingers the
 Shadow hand can actually span, and shares keys one hand cannot reach with the other, counting
 either lost key-frames or the per-step F1 the metric scores), and keeps the plan that plays
 best when each is rehearsed once on a copy of the environment (``PlannerConfig.hand_planning``,
@@ -31,14 +31,19 @@ Then each control step it
 The stages, one module each (read in this order):
 
 - :mod:`~pianist.control.planner.config`: :class:`PlannerConfig`, :data:`ENV_OPTIONS`;
-- :mod:`~pianist.control.planner.postures`: each finger's joints and sampled postures, the
-  lifted posture and each finger's reach;
+- :mod:`~pianist.control.planner.postures`: each finger's joints, the hand's poses (wrist
+  straight or turned), and per pose the sampled postures, lifted posture and reach;
 - :mod:`~pianist.control.planner.forearm`: the forearm's plan along the keyboard and its
   path, steered in closed loop (step 1);
 - :mod:`~pianist.control.planner.targets`: each fingertip's target (step 2);
 - :mod:`~pianist.control.planner.ik`: each finger's inverse kinematics (step 3);
 - :mod:`~pianist.control.planner.hand`: :class:`Hand`, one hand's indices and state, with
   the stages' methods;
+- :mod:`~pianist.control.planner.hand_plan`, :mod:`~pianist.control.planner.hand_split`,
+  :mod:`~pianist.control.planner.hand_order`: the whole-piece plans (arrays in, arrays out);
+- :mod:`~pianist.control.planner.coverage`: the reach ceiling and a plan's bound;
+- :mod:`~pianist.control.planner.plans`: a plan as data, and the cache of plans by their
+  inputs;
 - :mod:`~pianist.control.planner.rehearsal`: a candidate plan played through on a fork of
   the environment, and its replay;
 - :mod:`~pianist.control.planner.controller`: :class:`IKPlanner`, the plan choice and the

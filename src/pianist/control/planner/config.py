@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any, Literal, Protocol
 
 import numpy as np
 
-from pianist.control.hand_plan import HandPlanCosts, Objective
+from pianist.control.planner.hand_plan import HandPlanCosts, Objective
 
 if TYPE_CHECKING:
     import mujoco
@@ -202,9 +202,9 @@ class PlannerConfig:
     hand_planning: Literal["frame", "piece", "split", "best"] = "best"
     """How the hand positions are planned: ``frame`` by frame with the song's fingering,
     staying put within ``lazy_m``; over the whole ``piece``
-    (:mod:`pianist.control.hand_plan`) with the fingering ``refinger`` says; over the whole
+    (:mod:`pianist.control.planner.hand_plan`) with the fingering ``refinger`` says; over the whole
     piece after a joint plan of both hands has ``split`` the keys between them anew
-    (:mod:`pianist.control.hand_split`; open-etude-12 0.766 against 0.767 for ``best``, and
+    (:mod:`pianist.control.planner.hand_split`; open-etude-12 0.766 against 0.767 for ``best``, and
     planning 4x slower, so not among the candidates of ``best``); or the ``best`` of the
     plans named in ``best_candidates``, chosen as ``choose_plan`` says."""
     best_candidates: tuple[str, ...] = ("frame", "piece-f1")
@@ -244,7 +244,7 @@ class PlannerConfig:
     """With the plan's fingering, offer the keys one hand cannot reach to the other hand."""
     uncross_hands: bool = True
     """Plan with the song's hand crossings (a right-hand key below a left-hand one) given to
-    the hand on that side (:func:`pianist.control.hand_order.uncross_hands`): the forearms
+    the hand on that side (:func:`pianist.control.planner.hand_order.uncross_hands`): the forearms
     cannot cross, and a plan that sends one through the other loses both hands' keys."""
     clearance_cost: float = 5.0
     """Per frame, of a planned forearm position closer than ``forearm_separation_m`` to the

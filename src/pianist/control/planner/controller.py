@@ -4,7 +4,7 @@
 points and heights (see :class:`PlannerState`), builds the :class:`Hand` s, gives their
 fingers their posture samples (:mod:`postures`), and plans the hands: frame by frame, over
 the whole piece, or the best of those plans (``PlannerConfig.hand_planning``), kept in
-:data:`_PLANS` for the next episode of the same song and scene.
+:attr:`IKPlanner.cache` (:mod:`plans`) for the next episode of the same song and scene.
 
 ``act()`` returns the action, shape (nu + 1,) float32 in [-1, 1]: the forearm slides'
 commands (:mod:`forearm`), the wrist's, each finger's joint angles (:mod:`targets`, then
@@ -14,7 +14,6 @@ commands (:mod:`forearm`), the wrist's, each finger's joint angles (:mod:`target
 from __future__ import annotations
 
 import dataclasses
-import weakref
 from collections.abc import Callable
 from functools import partial
 from typing import TYPE_CHECKING, Any
@@ -24,10 +23,6 @@ import mujoco
 import numpy as np
 
 from pianist.control.base import BaseController
-from pianist.control.coverage import Coverage, plan_coverage, plan_key_classes, playable_mask
-from pianist.control.hand_order import uncross_hands
-from pianist.control.hand_plan import Objective
-from pianist.control.hand_split import HandReach, SplitCosts, split_hands
 from pianist.control.lookahead import LookAhead
 from pianist.control.planner.config import (
     ENV_OPTIONS,
@@ -37,14 +32,23 @@ from pianist.control.planner.config import (
     WHOLE_HAND_POSES,
     PlannerConfig,
 )
+from pianist.control.planner.coverage import (
+    Coverage,
+    plan_coverage,
+    plan_key_classes,
+    playable_mask,
+)
 from pianist.control.planner.forearm import _keep_forearms_apart
 from pianist.control.planner.hand import Hand
+from pianist.control.planner.hand_order import uncross_hands
+from pianist.control.planner.hand_plan import Objective
+from pianist.control.planner.hand_split import HandReach, SplitCosts, split_hands
+from pianist.control.planner.plans import PLANS, CachedPlan, HandPlanArrays, Plan, PlanCache
 from pianist.control.planner.postures import _use_postures
 from pianist.control.planner.rehearsal import Replay, f1_lost, rehearse
 from pianist.control.scoring import step_f1
 from pianist.env.handle import ControlHandle, control_handle
 from pianist.sim import constants as C
-from pianist.sim.scene import SceneOptions
 
 if TYPE_CHECKING:
     from pianist.music import Song
@@ -52,24 +56,6 @@ if TYPE_CHECKING:
 #: What a hand remembers between steps (see :class:`FingerTargets`), and what its last step
 #: decided (``state``, ``active``: read by recorders of the planner's decisions).
 _MEMORY = ("pressing", "stuck", "last_tips", "last_key", "unsounded", "state", "active")
-#: A hand's plan for a song: what ``IKPlanner._plan`` sets (read only once made).
-_PLAN_ARRAYS = (
-    "tx_plan",
-    "tx_held",
-    "busy",
-    "skip",
-    "free",
-    "shift_to",
-    "tx_path",
-    "tx_servo",
-    "pose_plan",
-    "pose_held",
-)
-#: Plans by (goal frames, scene options, config): a new episode of the same environment
-#: reuses its plan and rehearsal (planning takes up to ~1 s for a minute of music, rehearsal
-#: about two episodes) instead of making them again.
-_PLANS: dict[tuple[int, SceneOptions, PlannerConfig], tuple[Any, ...]] = {}
-_PLANS_KEPT = 8
 
 
 class IKPlanner(BaseController):
@@ -82,8 +68,14 @@ class IKPlanner(BaseController):
     the slide in :meth:`env_options` (:data:`ENV_OPTIONS`).
     """
 
-    def __init__(self, config: PlannerConfig | None = None) -> None:
+    plan_kind: tuple[str, bool, Objective]
+    """How the plan in use was made (:attr:`~pianist.control.planner.plans.Plan.kind`)."""
+
+    def __init__(self, config: PlannerConfig | None = None, cache: PlanCache | None = None) -> None:
         self.config = config or PlannerConfig()
+        self.cache = PLANS if cache is None else cache
+        """Where the plans made at reset are kept for the next episode of the same song and
+        scene (default: the planners' shared :data:`~pianist.control.planner.plans.PLANS`)."""
         self._coverage: Coverage | None = None
         self._whole_hand: dict[str, list[HandReach]] | None = None
         self._planned = False  # a plan is made at reset
@@ -106,14 +98,12 @@ class IKPlanner(BaseController):
         self._whole_hand = None
         self.setup(env)
         goal, handle, cfg = self.goal, self.handle, self.config
-        key = (id(goal), handle.scene.options, cfg)
-        cached = _PLANS.get(key)
-        if cached is not None and cached[0]() is goal:
+        cached = self.cache.get(goal, handle.scene.options, cfg)
+        if cached is not None:
             # The same song in the same scene (a new episode): the plan is the same, and so
             # is its rehearsal (replayed only while the episode stays on its path).
-            _, chosen, self._replay, rehearsed = cached
-            self.rehearsed = dict(rehearsed)
-            self._restore(chosen)
+            self._replay, self.rehearsed = cached.replay, dict(cached.rehearsed)
+            self._restore(cached.plan)
             self._play_tape()
             return
         if cfg.hand_planning == "best":
@@ -125,11 +115,8 @@ class IKPlanner(BaseController):
             self.plan_kind = (cfg.hand_planning, refinger, cfg.hand_plan.objective)
             self._plan(goal, *self.plan_kind)
             chosen = self._snapshot(self.plan_kind)
-        for gone in [k for k, entry in _PLANS.items() if entry[0]() is None]:
-            del _PLANS[gone]  # its song is gone: its rehearsal's tape with it
-        if len(_PLANS) >= _PLANS_KEPT:
-            del _PLANS[next(iter(_PLANS))]
-        _PLANS[key] = (weakref.ref(goal), chosen, self._replay, dict(self.rehearsed))
+        entry = CachedPlan(chosen, self._replay, dict(self.rehearsed))
+        self.cache.put(goal, handle.scene.options, cfg, entry)
         self._play_tape()
 
     def _play_tape(self) -> None:
@@ -181,7 +168,7 @@ class IKPlanner(BaseController):
         self.finger_states = np.zeros((goal.num_frames, 2 * FINGERS_PER_HAND), dtype=np.int8)
         _use_postures(m, self.scratch, self.hands, cfg, handle.scene.options)
 
-    def _choose_plan(self, goal, seed: int | None) -> tuple[Any, ...]:
+    def _choose_plan(self, goal, seed: int | None) -> Plan:
         """Make each plan of ``best_candidates`` and choose one (``choose_plan``): by
         rehearsal (:meth:`_rehearse_plans`, from the environment's state, or from its reset
         with ``seed`` if it has not started an episode), or the first that leaves playable all but
@@ -202,9 +189,7 @@ class IKPlanner(BaseController):
         self._restore(chosen)
         return chosen
 
-    def _rehearse_plans(
-        self, plans: list[tuple[str, np.ndarray, tuple[Any, ...]]], seed: int | None
-    ) -> tuple[Any, ...]:
+    def _rehearse_plans(self, plans: list[tuple[str, np.ndarray, Plan]], seed: int | None) -> Plan:
         """The plan of ``plans`` (name, (T,) each step's F1 if exactly its playable keys
         sound, snapshot) that plays best, each played through on a fork of the environment
         in its reset state (:mod:`rehearsal`); its rehearsal is kept for the performance to
@@ -219,10 +204,10 @@ class IKPlanner(BaseController):
         start = self.memory()
         look = LookAhead(self.handle, seed)
         state = look.snapshot()
-        best: tuple[float, Any, Replay] | None = None
-        rehearsed: list[tuple[Any, ...]] = []
+        best: tuple[float, Plan, Replay] | None = None
+        rehearsed: list[Plan] = []
         for name, promise, plan in sorted(plans, key=lambda p: -p[1].mean()):  # stable
-            if any(_same_plan(plan, other) for other in rehearsed):
+            if any(plan.same_as(other) for other in rehearsed):
                 continue  # it would play exactly as that one
             rehearsed.append(plan)
             self._restore(plan)
@@ -240,22 +225,22 @@ class IKPlanner(BaseController):
         self._replay = best[2]
         return best[1]
 
-    def _snapshot(self, kind: tuple[str, bool, Objective]) -> tuple[Any, ...]:
+    def _snapshot(self, kind: tuple[str, bool, Objective]) -> Plan:
         """The plan just made (its arrays are rebound, never changed, by later plans)."""
-        hands = [{name: getattr(hand, name) for name in _PLAN_ARRAYS} for hand in self.hands]
-        return kind, self.fingers, hands
+        return Plan(kind, self.fingers, tuple(HandPlanArrays.of(hand) for hand in self.hands))
 
-    def _restore(self, snapshot: tuple[Any, ...]) -> None:
-        self.plan_kind, self.fingers, hands = snapshot
-        for hand, arrays in zip(self.hands, hands, strict=True):
-            hand.__dict__.update(arrays)
+    def _restore(self, plan: Plan) -> None:
+        """Play ``plan`` from now on (each hand's arrays bound to it)."""
+        self.plan_kind, self.fingers = plan.kind, plan.fingers
+        for hand, arrays in zip(self.hands, plan.hands, strict=True):
+            arrays.bind(hand)
 
     def stats(self) -> dict[str, float]:
         """What the plan leaves out or lifts for a shift, as shares of the due key-frames, the
         F1 of sounding exactly what it leaves playable, the recall and F1 no controller with
-        these hands' reach can pass (:func:`pianist.control.coverage.plan_coverage`), and the
-        F1 each candidate plan rehearsed to (:attr:`rehearsed`), for metrics.json (none
-        before the first reset)."""
+        these hands' reach can pass (:func:`pianist.control.planner.coverage.plan_coverage`:
+        the whole hands' and the straight wrists'), and the F1 each candidate plan rehearsed
+        to (:attr:`rehearsed`), for metrics.json (none before the first reset)."""
         if not self._planned:
             return {}
         if self._coverage is None:
@@ -299,7 +284,7 @@ class IKPlanner(BaseController):
         - ``planned_fingers``: (T, 88) the finger (0-9) the plan gives each due key, -1 none;
         - ``left_out_keys``, ``shift_keys``: (T, 88) bool, the due keys the plan sends no
           finger to, and those it lets go for a shift
-          (:func:`pianist.control.coverage.plan_key_classes`);
+          (:func:`pianist.control.planner.coverage.plan_key_classes`);
         - ``finger_states``: (T, 10) int8, each finger's
           :class:`~pianist.control.planner.targets.FingerState` at each step played so far
           (0, lifted, for steps not played; a look-ahead's steps are overwritten by the real
@@ -357,7 +342,7 @@ class IKPlanner(BaseController):
 
     def _uncrossed(self, goal):
         """``goal`` with the song's hand crossings given to the hand on that side
-        (:func:`pianist.control.hand_order.uncross_hands`); ``goal`` itself if it has none.
+        (:func:`pianist.control.planner.hand_order.uncross_hands`); ``goal`` itself if it has none.
         Made once per goal: every candidate plan of a reset asks for it."""
         cached = getattr(self, "_uncrossed_goal", None)
         if cached is not None and cached[0] is goal:
@@ -371,7 +356,7 @@ class IKPlanner(BaseController):
         return planned
 
     def _plan_piece(self, goal, refinger: bool) -> None:
-        """The whole-piece plan of both hands (:mod:`pianist.control.hand_plan`).
+        """The whole-piece plan of both hands (:mod:`pianist.control.planner.hand_plan`).
 
         The right hand is planned first. With ``share_keys`` (and the plan's fingering), keys
         one hand cannot reach from its plan (an octave, a chord wider than the hand) are
@@ -425,7 +410,7 @@ class IKPlanner(BaseController):
 
     def _plan_split(self, goal) -> None:
         """Both hands' whole-piece plans for the keys the joint plan gives each
-        (:func:`pianist.control.hand_split.split_hands`), with the plan's fingering: the
+        (:func:`pianist.control.planner.hand_split.split_hands`), with the plan's fingering: the
         right hand first, then the left clear of it, then the right again clear of the
         left."""
         cfg = self.config
@@ -529,22 +514,12 @@ class IKPlanner(BaseController):
         return action.astype(np.float32)
 
 
-def _same_plan(a: tuple[Any, ...], b: tuple[Any, ...]) -> bool:
-    """Whether two plan snapshots (:meth:`IKPlanner._snapshot`) give the same fingers and
-    the same per-hand arrays (their kinds may differ)."""
-    if not np.array_equal(a[1], b[1]):
-        return False
-    return all(
-        np.array_equal(x[name], y[name]) for x, y in zip(a[2], b[2], strict=True) for name in x
-    )
-
-
 def _kept(hand: Hand) -> np.ndarray:
     """(T,) the keys a hand's whole-piece plan gives its fingers, per frame."""
     return (hand.key_fingers >= 0).sum(axis=1).astype(float)
 
 
 def forget_plans() -> None:
-    """Empty the plan cache (:data:`_PLANS`): the next reset plans (and rehearses) anew, as
-    a first episode does (for timing one)."""
-    _PLANS.clear()
+    """Empty the shared plan cache (:data:`~pianist.control.planner.plans.PLANS`): the next
+    reset plans (and rehearses) anew, as a first episode does (for timing one)."""
+    PLANS.clear()

@@ -4,12 +4,12 @@ Planned at reset (methods of :class:`ForearmPlan`; T frames, positions are the f
 ``tx`` slide's, in m):
 
 - ``plan_forearm``, frame by frame with the song's fingering, or ``plan_piece``, over the
-  whole piece (:func:`pianist.control.hand_plan.plan_hand`; ``own_keys`` and ``clearance``
+  whole piece (:func:`pianist.control.planner.hand_plan.plan_hand`; ``own_keys`` and ``clearance``
   serve the sharing of keys between the hands): ``tx_plan`` (T,) the position wanted at each
   frame, ``busy`` (T,) bool (the hand has notes), ``skip`` (T, 88) bool (its keys it leaves
   out), and for the piece plan ``key_fingers`` (T, 88) int (its finger 0-4 per key, or -1);
 - ``_keep_forearms_apart``: the two hands' ``tx_plan`` shifted so the forearms never touch;
-- ``reach_model``: what the hand reaches (:class:`pianist.control.hand_split.HandReach`);
+- ``reach_model``: what the hand reaches (:class:`pianist.control.planner.hand_split.HandReach`);
 - ``playable_keyframes``: how many key-frames a plan leaves playable (to choose a plan);
 - ``plan_commands``: the reference path ``tx_path`` (T + 2, 2) (m, m/s at the end of each
   step), the shifts (``free`` (T,) bool: the fingers let go; ``shift_to`` (T,) int: the
@@ -28,9 +28,9 @@ from collections.abc import Callable
 import numpy as np
 import scipy.linalg
 
-from pianist.control.hand_plan import HandPlanCosts, move_frames, plan_hand
-from pianist.control.hand_split import HandReach
 from pianist.control.planner.config import FINGERS_PER_HAND, PlannerConfig, PlannerState
+from pianist.control.planner.hand_plan import HandPlanCosts, move_frames, plan_hand
+from pianist.control.planner.hand_split import HandReach
 from pianist.control.planner.postures import HandPose
 from pianist.sim import constants as C
 
@@ -143,7 +143,7 @@ class ForearmPlan:
         pose_change_s: float = 0.15,
     ) -> None:
         """The forearm slide position and the hand's pose at every frame from the
-        whole-piece plan (:func:`pianist.control.hand_plan.plan_hand`, over every pose of
+        whole-piece plan (:func:`pianist.control.planner.hand_plan.plan_hand`, over every pose of
         ``poses``), with its ``busy``, ``skip`` and ``key_fingers`` (T, 88), this hand's
         finger 0-4 of each due key (-1: none).
 
@@ -312,7 +312,7 @@ class ForearmPlan:
         and velocity wanted at the end of every step.
 
         With ``multi_step`` (the whole-piece plan), a jump takes the steps the slide needs
-        (:func:`pianist.control.hand_plan.move_frames`) on a minimum-jerk path, the fingers
+        (:func:`pianist.control.planner.hand_plan.move_frames`) on a minimum-jerk path, the fingers
         lifted for them; otherwise every move takes ``forearm_move_s``.
 
         The plan's steps become minimum-jerk moves of ``forearm_move_s`` that end

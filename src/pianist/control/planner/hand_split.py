@@ -1,6 +1,6 @@
 """Which hand plays which key: both hands planned together over a whole piece.
 
-The whole-piece plan of one hand (:mod:`pianist.control.hand_plan`) takes the song's hands
+The whole-piece plan of one hand (:mod:`pianist.control.planner.hand_plan`) takes the song's hands
 as given; where a chord is wider than the hand it drops keys, and only then offers them to
 the other hand. Planned one after the other, the first hand cannot leave a key to the
 other, which may have had it within reach (the tenor of a chorale under the right thumb
@@ -13,7 +13,7 @@ over states (right position, left position):
 - **Staying** costs, per frame, the weighted keys left unplayed by the best *split* of the
   frame's keys (ordered across the keyboard, the left hand takes the lowest ``s``, the right
   the rest) and each hand's best order-keeping assignment of its keys to fingers that reach
-  them (:func:`pianist.control.hand_plan.key_prefix_values`); a key played by the hand the
+  them (:func:`pianist.control.planner.hand_plan.key_prefix_values`); a key played by the hand the
   song does not give it costs ``other_hand_cost`` (at a tie the song's hands win). Forearms
   closer than ``separation_m`` cost ``clearance_cost`` per frame.
 - **Moving** costs what each hand's move costs in the one-hand plan (separately for the two
@@ -21,7 +21,7 @@ over states (right position, left position):
   gives them) loses while its slide travels.
 
 The result is the split, (T, 88) which hand plays each due key; each hand's fine plan (and
-fingering) is then made for its keys by :func:`pianist.control.hand_plan.plan_hand`.
+fingering) is then made for its keys by :func:`pianist.control.planner.hand_plan.plan_hand`.
 Arrays in, arrays out; lengths in m, times in frames (control steps).
 """
 
@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pianist.control.hand_plan import HandPlanCosts, key_prefix_values, move_frames
+from pianist.control.planner.hand_plan import HandPlanCosts, key_prefix_values, move_frames
 
 RIGHT, LEFT = 0, 1
 

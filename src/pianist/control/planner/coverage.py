@@ -2,7 +2,7 @@
 
 Both count a piece's due key-frames (a key due at a frame) with the hands' reach model: each
 finger's sampled reach across the keyboard, white and black keys apart
-(:attr:`pianist.control.hand_split.HandReach.full_reach`).
+(:attr:`pianist.control.planner.hand_split.HandReach.full_reach`).
 
 - :func:`frame_ceiling`: per frame, the fewest due keys that *no* placement of the two hands
   lets a finger press. Every frame on its own: both hands anywhere in their slides' ranges
@@ -31,8 +31,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from pianist.control.hand_plan import key_prefix_values
-from pianist.control.hand_split import HandReach
+from pianist.control.planner.hand_plan import key_prefix_values
+from pianist.control.planner.hand_split import HandReach
 from pianist.control.scoring import step_f1
 from pianist.sim import constants as C
 
