@@ -106,39 +106,54 @@ def _fewest_lost(
 ) -> int:
     """One frame's keys (ascending y): how many the best placement, poses and split leave
     unplayed."""
-    n = ids.size
-    ones = np.ones(n)
     # high[s, p]: how many of the highest s keys the right hand plays from position p in its
     # best pose for them; low[s, q] the same for the left hand and the lowest s keys (edges
     # count in full: edge cost 0).
-    high = np.max(
-        [
-            key_prefix_values(
-                ids, ones, key_y, black, h.full_reach, h.full_reach, grids[0], 0.0, "down"
-            )
-            for h in rights
-        ],
-        axis=0,
-    )
-    low = np.max(
-        [
-            key_prefix_values(
-                ids, ones, key_y, black, h.full_reach, h.full_reach, grids[1], 0.0, "up"
-            )
-            for h in lefts
-        ],
-        axis=0,
-    )
+    high = _prefix_values(ids, key_y, black, rights, grids[0], "down")
+    low = _prefix_values(ids, key_y, black, lefts, grids[1], "up")
     # For each right-hand position, the best left-hand position that keeps clear of it.
     best_low = np.maximum.accumulate(low, axis=1)  # (n + 1, PL): best over q' <= q
     clear = last_left >= 0
     best = 0.0
+    n = ids.size
     for s in range(n + 1):  # the left hand takes the lowest s keys
         if not clear.any():
             break
         total = high[n - s, clear] + best_low[s, last_left[clear]]
         best = max(best, float(total.max()))
     return int(round(n - best))
+
+
+def _prefix_values(
+    ids: np.ndarray,
+    key_y: np.ndarray,
+    black: np.ndarray,
+    poses: list[HandReach],
+    grid: np.ndarray,
+    direction: str,
+) -> np.ndarray:
+    """(n + 1, P): the most keys of the frame's n (``ids``, ascending y) one hand plays from
+    each slide position of ``grid``, in its best pose of ``poses``, taking them from the top
+    (``direction="down"``) or the bottom (``"up"``). Only the positions from which some
+    finger reaches some of the keys are searched: elsewhere the hand plays none."""
+    y = key_y[ids]
+    lo = min(float(y.min() - h.full_reach[..., 1].max()) for h in poses)
+    hi = max(float(y.max() - h.full_reach[..., 0].min()) for h in poses)
+    first, last = np.searchsorted(grid, [lo - 1e-9, hi + 1e-9], side="left")
+    out = np.zeros((ids.size + 1, grid.size))
+    if last > first:
+        ones = np.ones(ids.size)
+        window = grid[first:last]
+        out[:, first:last] = np.max(
+            [
+                key_prefix_values(
+                    ids, ones, key_y, black, h.full_reach, h.full_reach, window, 0.0, direction
+                )
+                for h in poses
+            ],
+            axis=0,
+        )
+    return out
 
 
 def _widened(hand: HandReach, tolerance_m: float) -> HandReach:
