@@ -300,6 +300,7 @@ def test_reward_is_the_weighted_sum_of_terms(chords_env: PianoEnv) -> None:
         "energy": -5e-3,
         "sustain": 1.0,
         "forearm": 1.0,
+        "velocity": 1.0,  # its term 0 without velocity_goal
     }
     actions = random_actions(chords_env, 10, seed=4)
     chords_env.reset(seed=0)
@@ -308,7 +309,7 @@ def test_reward_is_the_weighted_sum_of_terms(chords_env: PianoEnv) -> None:
         _, r_default, *_, info_default = chords_env.step(a)
         _, r_custom, *_, info_custom = other.step(a)
         terms = info_default["reward_terms"]
-        assert set(terms) == {"key_press", "fingering", "energy", "sustain", "forearm"}
+        assert set(terms) == {"key_press", "fingering", "energy", "sustain", "forearm", "velocity"}
         assert terms == info_custom["reward_terms"]  # weights do not change the physics
         expected = {
             w: sum(getattr(weights, name) * value for name, value in terms.items())

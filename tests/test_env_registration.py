@@ -80,6 +80,7 @@ def test_make_and_step() -> None:
             "energy",
             "sustain",
             "forearm",
+            "velocity",
         }
     finally:
         env.close()

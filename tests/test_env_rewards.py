@@ -157,5 +157,6 @@ def test_forearm_reward() -> None:
 def test_default_weights() -> None:
     w = RewardWeights()
     assert (w.key_press, w.fingering, w.energy, w.sustain, w.forearm) == (1, 1, -5e-3, 1, 1)
-    assert list(w.as_dict()) == ["key_press", "fingering", "energy", "sustain", "forearm"]
+    terms = ["key_press", "fingering", "energy", "sustain", "forearm", "velocity"]
+    assert list(w.as_dict()) == terms
     assert math.isclose(RewardWeights(energy=-1.0).as_dict()["energy"], -1.0)

@@ -50,7 +50,8 @@ def test_run_episode_records_every_step_and_replay_reproduces_it():
     assert first.actions.shape == (env.num_steps, env.action_space.shape[0])
     assert first.active_keys.shape == (env.num_steps, 88)
     np.testing.assert_array_equal(first.goal_keys, env.goal.keys)
-    assert set(first.reward_terms) == {"key_press", "fingering", "energy", "sustain", "forearm"}
+    terms = {"key_press", "fingering", "energy", "sustain", "forearm", "velocity"}
+    assert set(first.reward_terms) == terms
     replay = run_episode(env, ReplayController(first.actions), seed=5)
     np.testing.assert_array_equal(replay.active_keys, first.active_keys)
     np.testing.assert_array_equal(replay.rewards, first.rewards)

@@ -11,7 +11,7 @@ from pianist.sim import constants as C
 from pianist.sim.hands import HandOptions
 from pianist.sim.scene import SceneOptions
 
-REWARD_TERMS = ("key_press", "fingering", "energy", "sustain", "forearm")
+REWARD_TERMS = ("key_press", "fingering", "energy", "sustain", "forearm", "velocity")
 FINGERING_REWARDS = ("assigned", "optimal")
 
 
@@ -24,6 +24,8 @@ class RewardWeights:
     energy: float = -5e-3
     sustain: float = 1.0
     forearm: float = 1.0
+    velocity: float = 1.0
+    """Its term is 0 unless ``velocity_goal`` is on (the paper's task has no loudness)."""
 
     def as_dict(self) -> dict[str, float]:
         return {name: getattr(self, name) for name in REWARD_TERMS}

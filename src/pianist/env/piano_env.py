@@ -48,6 +48,7 @@ import numpy as np
 from pianist.env import rewards as R
 from pianist.env.config import REWARD_TERMS, EnvConfig, make_config
 from pianist.env.events import EMPTY_EVENTS, key_events, sustain_event
+from pianist.env.loudness import speed_to_velocity, strike_speeds
 from pianist.env.tape import StepTape
 from pianist.music import GoalFrames, Song, goal_frames, load_song
 from pianist.sim import constants as C
@@ -125,6 +126,8 @@ class EnvState:
     key_state: np.ndarray
     key_qpos_after_step: np.ndarray
     warnings_seen: int
+    key_qpos_before_step: np.ndarray
+    """(88,) rad: the keys' angles as the step before the last began (strike speeds)."""
 
 
 class PianoEnv(gym.Env):
@@ -326,6 +329,7 @@ class PianoEnv(gym.Env):
         self._pending_events = EMPTY_EVENTS
         self._key_state = self.key_state()
         self._key_qpos_after_step = self.data.qpos[self._key_slice].copy()
+        self._key_qpos_before_step = self._key_qpos_after_step.copy()
         self._warnings_seen = self._instability_warnings()
         info = {"step": 0, "active_keys": self._active.copy(), "sustain": False}
         return self._observation(), info
@@ -374,8 +378,20 @@ class PianoEnv(gym.Env):
         every field of the simulator state that the steps to come depend on)."""
         if state.step != self._t or state.sustain != self._sustain:
             return False
-        mine = (self._active, self._key_state, self._key_qpos_after_step, self._pending_events)
-        theirs = (state.active, state.key_state, state.key_qpos_after_step, state.pending_events)
+        mine = (
+            self._active,
+            self._key_state,
+            self._key_qpos_after_step,
+            self._key_qpos_before_step,
+            self._pending_events,
+        )
+        theirs = (
+            state.active,
+            state.key_state,
+            state.key_qpos_after_step,
+            state.key_qpos_before_step,
+            state.pending_events,
+        )
         if not all(np.array_equal(a, b) for a, b in zip(mine, theirs, strict=True)):
             return False
         return state.data.time == self.data.time and all(
@@ -510,8 +526,12 @@ class PianoEnv(gym.Env):
 
         t = self._t
         self._key_state = self.key_state()
+        # The keys' angles as this step and the one before began (the strikes' speeds).
+        starts = (self._key_qpos_before_step, self._key_qpos_after_step)
+        self._key_qpos_before_step = self._key_qpos_after_step
         self._key_qpos_after_step = self.data.qpos[self._key_slice].copy()
         terms = self._reward_terms(t)
+        terms["velocity"] = self._velocity_term(t, key_ev, *starts)
         reward = sum(w * terms[name] for name, w in self._weights)
         due = self.goal.keys[t]
         wrong = bool((self._active & ~due).any())
@@ -554,6 +574,7 @@ class PianoEnv(gym.Env):
             pending_events=self._pending_events.copy(),
             key_state=self._key_state.copy(),
             key_qpos_after_step=self._key_qpos_after_step.copy(),
+            key_qpos_before_step=self._key_qpos_before_step.copy(),
             warnings_seen=self._warnings_seen,
         )
 
@@ -571,6 +592,7 @@ class PianoEnv(gym.Env):
         self._pending_events = state.pending_events.copy()
         self._key_state = state.key_state.copy()
         self._key_qpos_after_step = state.key_qpos_after_step.copy()
+        self._key_qpos_before_step = state.key_qpos_before_step.copy()
         self._warnings_seen = state.warnings_seen
 
     def fork(self, seed: int | None = None) -> PianoEnv:
@@ -629,6 +651,30 @@ class PianoEnv(gym.Env):
             "sustain": R.sustain_reward(bool(self.goal.sustain[t]), self._sustain),
             "forearm": R.forearm_reward(self._forearms_touch()),
         }
+
+    def _velocity_term(
+        self, t: int, events_now: np.ndarray, previous_start: np.ndarray, start: np.ndarray
+    ) -> float:
+        """The ``velocity`` reward term of step ``t`` (:func:`rewards.velocity_reward`): how
+        far the due keys struck in it (``events_now`` (n, 3), its key events) sounded from the
+        score's velocities, each strike's
+        speed measured as the metrics measure it (:mod:`pianist.env.loudness`, from the keys'
+        angles as the previous step and this one began, ``previous_start`` and ``start``
+        (88,) rad). 0 without ``velocity_goal``."""
+        if not self.config.velocity_goal or events_now.size == 0:
+            return 0.0
+        struck = events_now[(events_now[:, 1] >= 0) & (events_now[:, 2] != 0)]
+        keys = struck[:, 1].astype(int)
+        due = self.goal.keys[t, keys]
+        if not due.any():
+            return 0.0
+        dt = self.config.control_timestep_s
+        events = struck[due].copy()
+        events[:, 0] -= self.data.time - 2 * dt  # from the previous step's start
+        angles = np.stack([previous_start, start, self._key_qpos_after_step])
+        speeds = strike_speeds(events, angles, dt, self._key_threshold)
+        played = speed_to_velocity(speeds)
+        return R.velocity_reward(played, self.goal.velocities[t, keys[due]])
 
     @property
     def _fingering_term(self) -> Any:

@@ -134,3 +134,13 @@ def sustain_reward(goal_sustain: bool, sustain_active: bool) -> float:
 def forearm_reward(forearms_touch: bool) -> float:
     """0.5 while the two forearms are apart."""
     return 0.0 if forearms_touch else FOREARM_CLEAR_REWARD
+
+
+def velocity_reward(played: np.ndarray, target: np.ndarray) -> float:
+    """Minus the mean absolute difference, over the due keys struck this step, between the
+    MIDI velocity each sounded (``played`` (n,)) and the score's (``target`` (n,)), divided
+    by 127: 0 when every strike is as loud as written (or none was made), -1 at worst."""
+    if len(played) == 0:
+        return 0.0
+    diff = np.abs(np.asarray(played, dtype=np.float64) - np.asarray(target, dtype=np.float64))
+    return -float(diff.mean()) / 127.0

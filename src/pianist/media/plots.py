@@ -273,7 +273,10 @@ def _plot_rewards(
         # Repeat the last value so the final step is drawn over its whole interval.
         ax.step(edges, np.append(values, values[-1]), where="post", **style)
 
-    for name, values in episode.reward_terms.items():
+    for name, series in episode.reward_terms.items():
+        values = np.asarray(series, dtype=np.float64).reshape(-1)
+        if values.shape == (steps,) and not values.any():
+            continue  # a term that is 0 throughout (velocity without the score's loudness)
         if weights is None:
             step_line(values, label=name, linewidth=1.0)
         elif name in weights:
