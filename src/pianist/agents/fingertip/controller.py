@@ -55,9 +55,11 @@ from pianist.sim import constants as C
 #: The planner whose plan fingers a song for a policy that reads the plan's fingering, and
 #: whose decisions label it: its plan chosen from the candidates the shipped policy was
 #: trained with, by the key-frames each leaves playable, not by rehearsal (a policy reads no
-#: physics ahead, and three rehearsals at reset would slow it from ~14x real time to ~5x).
+#: physics ahead, and three rehearsals at reset would slow it from ~14x real time to ~5x),
+#: and with the wrist straight throughout (no reach poses): the policy commands no wrist
+#: pose, and was trained on plans for a straight hand.
 PLAN_FINGERING_CONFIG = PlannerConfig(
-    choose_plan="playable", best_candidates=("frame", "piece-song", "piece")
+    choose_plan="playable", best_candidates=("frame", "piece-song", "piece"), reach_poses=()
 )
 
 FORMAT = "pianist-fingertip"
