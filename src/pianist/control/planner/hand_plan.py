@@ -14,6 +14,11 @@ frames costs what the move loses. The cheapest path over the whole piece is the 
   the hand's fingers for the frames the slide needs to get there (from its servo's measured
   speed, :func:`move_frames`), so it costs the hand's key-frames due in those frames before t,
   plus ``shift_cost``.
+- **Poses** (given the reach of K poses): every candidate is a position in a pose; a change
+  of pose (the wrist turned) is a shift of at least the wrist's frames, and a pose other
+  than the first is counted to lose a share of the hand's keys (``reach_pose_loss`` where
+  a chord struck together wants it, ``reach_pose_idle_loss`` elsewhere) and is a candidate
+  only near such chords (``reach_pose_window``).
 - **Counting** (``HandPlanCosts.objective``): a lost key costs its weight (``key_frames``),
   or the F1 it takes from its frame's step (``step_f1``, :func:`step_f1_costs`), the unit
   of the metric, which averages each step's F1: a key lost from a step with one key due
@@ -78,16 +83,16 @@ class HandPlanCosts:
     to lose at every frame where it is wanted: a chord struck together that the first pose
     covers from no position (a block octave: one key of two lost straight, against 2 x this
     turned) ..."""
-    reach_pose_window: int = 3
-    """Frames before and after a chord that wants a reach pose in which the plan may keep
-    a hand in it (elsewhere the pose is not a candidate, so a piece without such chords
-    is planned as fast as with one pose)."""
     reach_pose_idle_loss: float = 1.0
     """... and at every other frame (keys held from earlier among them, or a chord the first
     pose covers): fingers at the edge of the turned hand's reach land less surely, and in
     moving passages they lost more than the keys the straight hand gives up (the C major
     prelude 0.934 -> 0.882 with its right hand turned for 21 % of the piece to hold keys
     over its arpeggios, at 0.05 everywhere)."""
+    reach_pose_window: int = 3
+    """Frames before and after a chord that wants a reach pose in which the plan may keep
+    a hand in it (elsewhere the pose is not a candidate, so a piece without such chords
+    is planned as fast as with one pose)."""
     objective: Objective = "key_frames"
     """What a lost key costs. ``key_frames``: its weight, the same in every frame.
     ``step_f1``: what it takes from the frame's F1, the metric's unit (F1 per step, averaged
