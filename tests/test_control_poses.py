@@ -224,3 +224,15 @@ def test_a_chord_struck_together_is_told_from_one_over_a_held_key():
     mine[6:8, 39] = True  # a long note ...
     mine[7, 51] = True  # ... and a key struck over it
     assert _struck_together(mine).tolist() == [True] * 6 + [True, False]
+
+
+@pytest.mark.parametrize("physics", ["fast", "faithful"])
+def test_pieces_of_the_octaves_suite_play_above_a_floor(physics):
+    # bench_reach.py: octave-melody 0.796 / 0.792 (fast / faithful), 0.728 / 0.733 with the
+    # wrist straight; block-octaves 0.629 / 0.645, 0.620 / 0.621 straight.
+    from pianist.eval.session import play
+
+    floors = {"octave-melody": 0.77, "block-octaves": 0.61}
+    for name, floor in floors.items():
+        f1 = play(name, IKPlanner(), physics=physics, seed=0).metrics["f1"]
+        assert f1 >= floor, (name, f1)

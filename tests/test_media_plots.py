@@ -109,3 +109,19 @@ def test_the_planned_hand_spans_are_shaded_on_the_roll(tmp_path) -> None:
     a, b = matplotlib.image.imread(plain), matplotlib.image.imread(shaded)
     changed = np.abs(a - b).sum(axis=-1) > 0.05
     assert changed.sum() > 1000  # the band (and its legend entry) is drawn
+
+
+def test_the_planned_wrist_turns_are_hatched_on_the_roll(tmp_path) -> None:
+    import matplotlib.image
+
+    straight, turned = tmp_path / "straight.png", tmp_path / "turned.png"
+    span = np.zeros((10, 1, 2))
+    span[:, 0] = (30.0, 45.0)
+    images = []
+    for path, poses in ((straight, np.zeros((10, 1), int)), (turned, np.ones((10, 1), int))):
+        episode = _episode()
+        episode.extra.update(hand_key_span=span, hand_sides=np.array(["right"]), hand_pose=poses)
+        plot_pianoroll(episode, path, size_in=(8.0, 5.0), dpi=50)
+        images.append(matplotlib.image.imread(path))
+    changed = np.abs(images[0] - images[1]).sum(axis=-1) > 0.05
+    assert changed.sum() > 200  # the hatching over the band (and its legend entry)

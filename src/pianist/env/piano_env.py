@@ -656,11 +656,11 @@ class PianoEnv(gym.Env):
         self, t: int, events_now: np.ndarray, previous_start: np.ndarray, start: np.ndarray
     ) -> float:
         """The ``velocity`` reward term of step ``t`` (:func:`rewards.velocity_reward`): how
-        far the due keys struck in it (``events_now`` (n, 3), its key events) sounded from the
-        score's velocities, each strike's
-        speed measured as the metrics measure it (:mod:`pianist.env.loudness`, from the keys'
-        angles as the previous step and this one began, ``previous_start`` and ``start``
-        (88,) rad). 0 without ``velocity_goal``."""
+        far the due keys struck in it (``events_now`` (n, 3), its key events) sounded from
+        the score's velocities, each strike's speed measured as the metrics measure it
+        (:mod:`pianist.env.loudness`, from the keys' angles as the previous step and this
+        one began, ``previous_start`` and ``start`` (88,) rad). 0 without
+        ``velocity_goal``."""
         if not self.config.velocity_goal or events_now.size == 0:
             return 0.0
         struck = events_now[(events_now[:, 1] >= 0) & (events_now[:, 2] != 0)]
