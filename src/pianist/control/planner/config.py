@@ -92,18 +92,15 @@ class PlannerConfig:
     """Frames before its note a shift (a move the fingers let go for, see
     ``shift_threshold_m``) ends, at most ``press_lead_frames``: 0, the hand arrives as the
     note's frame begins and its fingers press from the hover they travelled in. The keys
-    before the shift are then held a frame longer (with 1, the D major scale's F#4 fell
-    silent for two frames before the thumb passed under, now for one)."""
+    before the shift are then held a frame longer."""
     shift_delay_max_frames: int = 8
     """Frames a shift of the whole-piece plan may leave later than planned, so that the hand
     holds its keys longer and the next notes lose their first frames instead, when fewer of
     its due key-frames fall in the moving window so (:meth:`ForearmPlan.plan_commands`).
-    0: never. Open-etude-12 0.792 -> 0.804 fast, 0.786 -> 0.796 faithful
-    (docs/notes/2026-12-07-planner-plans.md)."""
+    0: never."""
     shift_delay_cost: float = 0.5
-    """Key-frames each frame of a shift's delay is charged besides those it loses: with none,
-    a delay that saves one key-frame of a chord cost `c-major-chords` 0.005 F1 (a hand that
-    arrives later presses its next notes no sooner); at 1 open-etude-12 gains only 0.005."""
+    """Key-frames each frame of a shift's delay is charged besides those it loses: a hand
+    that arrives later presses its next notes no sooner."""
     hand_height_m: float = -0.03
     """Height command of the forearm's ``tz`` slide (when the scene has one)."""
     height_feedback: float = 3.0
@@ -120,7 +117,7 @@ class PlannerConfig:
     flexes it: the thumb's lowest white key to the little finger's highest spans 0.176 m,
     an octave (0.1645 m) and more, against 0.129 m straight. The 7.5 mm raise lets a
     little finger at the edge of that reach hover over its key instead of pressing the one
-    below it: block octaves in both hands F1 0.85 -> 0.95 (fast), 0.81 -> 0.93 (faithful).
+    below it.
     Each pose has its own posture samples and reach; the plan changes pose with the
     fingers lifted (``pose_change_s``; its weights in :class:`HandPlanCosts`). Empty: the
     wrist stays at its home pose, the planner as before reach poses."""
@@ -204,33 +201,28 @@ class PlannerConfig:
     staying put within ``lazy_m``; over the whole ``piece``
     (:mod:`pianist.control.planner.hand_plan`) with the fingering ``refinger`` says; over the whole
     piece after a joint plan of both hands has ``split`` the keys between them anew
-    (:mod:`pianist.control.planner.hand_split`; open-etude-12 0.766 against 0.767 for ``best``, and
-    planning 4x slower, so not among the candidates of ``best``); or the ``best`` of the
+    (:mod:`pianist.control.planner.hand_split`; not among the candidates of ``best``: no
+    better, and four times slower to plan); or the ``best`` of the
     plans named in ``best_candidates``, chosen as ``choose_plan`` says."""
     best_candidates: tuple[str, ...] = ("frame", "piece-f1")
     """The plans ``hand_planning="best"`` chooses from (:data:`PLAN_CANDIDATES`), in order
     of preference: ``frame`` by frame, or over the whole piece with the plan's fingering
     counting the per-step F1 the metric scores (``piece-f1``, ``HandPlanCosts.objective``).
     Also known: ``piece``, the same counting lost key-frames, and ``piece-song``, the
-    whole-piece plan with the song's fingering. Rehearsing ``piece`` too costs 0.8 of an
-    episode more per cold start for 0.001 F1 (open-etude-12 faithful 0.7823 -> 0.7835, fast
-    0.7880 -> 0.7882, the debug suites the same; 0.004 in the paper's embodiment:
-    docs/notes/2026-12-07-planner-plans.md);
-    ``piece-song`` played no piece of open-etude-12 or the debug suites
-    best."""
+    whole-piece plan with the song's fingering: rehearsing them too costs most of an episode
+    more per cold start for next to nothing."""
     choose_plan: Literal["rehearsal", "playable"] = "rehearsal"
     """How ``best`` chooses: by playing each candidate through once on a copy of the
     environment and keeping the best F1 (``rehearsal``, :mod:`rehearsal`; the first of
     equals; the performance then replays the winner's actions while it stays on their path),
     or by the key-frames each leaves playable (``playable``: a later plan is chosen only if
     it adds ``piece_plan_margin`` of the song's key-frames; no simulation, but blind to how a
-    plan is executed: open-etude-12 0.777 against 0.788, fast)."""
+    plan is executed)."""
     replay_tape: bool = True
     """With ``choose_plan="rehearsal"``, hand the winning rehearsal's recorded steps to the
     environment to play back (:meth:`pianist.env.PianoEnv.play_tape`) while the performance
     follows them, instead of simulating them again: the same episode, bit for bit, without
-    the performance's physics (a cold start 1.23x faster fast, 1.35x faithful, in the median
-    over open-etude-12: docs/notes/2026-12-07-planner-plans.md)."""
+    the performance's physics (a cold start a quarter to a third faster)."""
     piece_plan_margin: float = 0.02
     """With ``choose_plan="playable"``, the share of the song's key-frames a later plan must
     add to be chosen (wide chords, jumps, a fingering the Shadow hand cannot span)."""
@@ -268,7 +260,7 @@ class PlannerConfig:
     edge of its reach, where its joints cannot put the tip both that deep and over the key:
     unweighted, the solution gave up ~8 mm across (the tip then pressed the crack between
     two keys, or slid off as it pressed); weighted, it gives up depth, which the key's bottom
-    takes anyway. (Weighting every finger's error so cost the debug chords ~0.009 F1.)"""
+    takes anyway. The other fingers keep equal weights."""
     hover_height_weight: float = 10.0
     """In a reach pose (``reach_poses``), the weight of a hovering finger's error in height
     (z), against across and along the keys. A finger hovering over a key at the edge of the
@@ -282,11 +274,8 @@ class PlannerConfig:
     """Extra push of a pressing finger per radian the keys have bent the wrist up (rad/rad;
     WRJ1 measured against its pose). The keys of a chord bend the wrist up by 0.1-0.2 rad,
     which lifts the finger that comes last (often the little one) ~1 cm off its key: it
-    presses level with the key's top without sounding it. Off by default: at 1 rad/rad
-    open-etude-12 gains 0.005 (0.777 -> 0.782 fast, 0.774 -> 0.780 faithful), but the
-    original's chord progression loses 0.010 (noisy mean of 8, 0.860 -> 0.853 faithful,
-    0.867 -> 0.857 fast), and the debug songs may not fall; at 2 it pressed neighbouring
-    keys (precision 0.949 -> 0.934)."""
+    presses level with the key's top without sounding it. Off by default: what it wins on
+    real pieces it loses on the original's chord progression."""
     thumb_push_rad: float = 0.3
     """Extra command of a pressing thumb along the joint direction that lowers its tip."""
     finger_push_rad: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
@@ -299,10 +288,8 @@ class PlannerConfig:
     """Extra push (thumb to little finger) of a finger pressing again, at the first step, the
     key it let up the step before (a re-strike: two notes of one key a frame apart). The key
     has that one step to go down again, and from where the finger rose (a median 7-12 mm
-    above the key) the servo alone sounds it late by 0.6-1.1 frames on average per finger
-    (open-etude-12, fast); pushed, by 0.2-0.8. Open-etude-12 gains 0.004 (0.782 -> 0.786
-    faithful, 0.788 -> 0.792 fast, noisy means alike), the debug songs keep their figures.
-    Not the thumb: pushed, it sounds the key beside it (Twinkle 0.973 -> 0.971)."""
+    above the key) the servo alone sounds it late. Not the thumb: pushed, it sounds the key
+    beside it."""
     paper_embodiment: bool = False
     """Play in the paper's scene (forearm slides ``tx`` and ``ty`` only) instead of declaring
     the height slide (:data:`ENV_OPTIONS`): the thumb then cannot press a white key."""
@@ -310,8 +297,7 @@ class PlannerConfig:
     """In the full action space (``reduced_action_space=False``), also move the joints the
     paper's reduced hand does without (THJ5, THJ1, LFJ5) and THJ2 below 0. Off, the planner
     holds them as the reduced hand has them (commanded 0; THJ2 in [0, 0.698] rad) and plays
-    as it does there: every rule here was tuned on that hand, and moving them, open-etude-12
-    (fast) falls from 0.812 to 0.674 and the debug songs from 0.955 to 0.866."""
+    as it does there: every rule here was tuned on that hand."""
     unsounded_latch: bool = True
     """Keep the push for the rest of the key's press once given (the key sounds only in the
     last 0.5 degrees of its travel: a finger easing off lets it flicker)."""

@@ -86,9 +86,7 @@ class HandPlanCosts:
     reach_pose_idle_loss: float = 1.0
     """... and at every other frame (keys held from earlier among them, or a chord the first
     pose covers): fingers at the edge of the turned hand's reach land less surely, and in
-    moving passages they lost more than the keys the straight hand gives up (the C major
-    prelude 0.934 -> 0.882 with its right hand turned for 21 % of the piece to hold keys
-    over its arpeggios, at 0.05 everywhere)."""
+    moving passages they lost more than the keys the straight hand gives up."""
     reach_pose_window: int = 3
     """Frames before and after a chord that wants a reach pose in which the plan may keep
     a hand in it (elsewhere the pose is not a candidate, so a piece without such chords
@@ -110,8 +108,7 @@ class HandPlanCosts:
     """With ``objective="step_f1"``, the move, shift and held-key costs times this: a hand
     that moves loses more in execution (late landings, a swing of the wrist) than the
     key-frames the plan counts, and against keys counted at ``step_f1_scale`` a plan with
-    cheap moves moves too often (open-etude-12 0.780 at 1, 0.788 at 4, whole-piece plans
-    alone, fast)."""
+    cheap moves moves too often."""
 
 
 def move_frames(
