@@ -122,56 +122,20 @@ def test_plan_hand_chooses_the_pose_per_chord():
     for t in range(12, 48):
         keys[t, 39 + (t // 6) % 3] = True
     fingers = np.where(keys, 0, -1)
-    plan = plan_hand(
-        keys,
-        fingers,
-        key_y,
-        black,
-        np.stack([straight, turned]),
-        np.stack([straight, turned]),
-        np.zeros((2, 5)),
-        (-1.0, 2.0),
-        0.0,
-        0.05,
-        "top",
-        HandPlanCosts(),
-        refinger=True,
-        pose_frames=3,
-    )
-    assert (plan.pose[0:10] == 1).all() and (plan.pose[50:60] == 1).all()
-    assert (plan.pose[20:40] == 0).all()
-    assert not plan.skip[0:10].any()
+
+    def plan(reach: np.ndarray, **options):
+        rest = np.zeros(reach.shape[:-2][:-1] + (5,))  # (5,) or (K, 5)
+        return plan_hand(
+            keys, fingers, key_y, black, reach, reach, rest, (-1.0, 2.0), 0.0, 0.05, "top",
+            HandPlanCosts(), refinger=True, **options,
+        )  # fmt: skip
+
+    both = plan(np.stack([straight, turned]), pose_frames=3)
+    assert (both.pose[0:10] == 1).all() and (both.pose[50:60] == 1).all()
+    assert (both.pose[20:40] == 0).all()
+    assert not both.skip[0:10].any()
     # One pose: the plan's candidates and path are those of the single reach given alone.
-    alone = plan_hand(
-        keys,
-        fingers,
-        key_y,
-        black,
-        straight,
-        straight,
-        np.zeros(5),
-        (-1.0, 2.0),
-        0.0,
-        0.05,
-        "top",
-        HandPlanCosts(),
-        refinger=True,
-    )
-    stacked = plan_hand(
-        keys,
-        fingers,
-        key_y,
-        black,
-        straight[None],
-        straight[None],
-        np.zeros((1, 5)),
-        (-1.0, 2.0),
-        0.0,
-        0.05,
-        "top",
-        HandPlanCosts(),
-        refinger=True,
-    )
+    alone, stacked = plan(straight), plan(straight[None])
     np.testing.assert_array_equal(alone.position, stacked.position)
     assert (alone.pose == 0).all()
 
