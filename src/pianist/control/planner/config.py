@@ -347,6 +347,20 @@ WHOLE_HAND_POSES: tuple[tuple[float, float, float, float], ...] = (
     (-0.52, 0.35, 0.0, 0.0),
 )
 
+#: ``reach_poses`` for chords an octave wide with keys inside it (C-E-G-C): the default turned
+#: pose, and a second one flexed further (0.40 rad of WRJ1's 0.49) and raised 2 cm. In the
+#: default pose the index finger cannot come nearer the thumb than F4 while the thumb holds C4
+#: and the little finger C5, so the plan leaves C4 out (per key 0.0, F1 0.854, fast); with the
+#: second pose every key of C-E-G-C in one hand and two octaves lower in the other sounds in
+#: 0.88-1.0 of its frames (F1 0.885 fast, 0.940 faithful). Not the default: on the ``octaves``
+#: suite (fast) it plays seventh chords better (0.739 -> 0.782) and an octave melody worse
+#: (0.796 -> 0.667), where the plan keeps the flexed, raised hand for the whole melody;
+#: open-etude-12 is unchanged but for two pieces (-0.008, -0.0002).
+CHORD_REACH_POSES: tuple[tuple[float, float, float, float], ...] = (
+    (-0.44, 0.28, 0.0, 0.0075),
+    (-0.44, 0.40, 0.0, 0.02),
+)
+
 #: Environment options the planner plays best with: the forearm's height slide added. In the
 #: paper's action space the Shadow thumb cannot press a white key: with the forearm at its home
 #: height its fingertip capsule stops ~1.5 mm above the depth at which a key sounds, even with
