@@ -15,7 +15,7 @@ from pianist.music import list_songs
 
 
 def _builtin() -> list[str]:
-    suites = ("debug", "robopianist-debug", "octaves", "open-etude-12")
+    suites = ("debug", "robopianist-debug", "octaves", "dynamics", "open-etude-12")
     return [song for suite in suites for song in list_songs(suite)]
 
 
@@ -23,6 +23,7 @@ def test_every_song_is_registered() -> None:
     songs = _builtin()
     assert len(songs) >= 24 and "twinkle-twinkle" in songs and "joplin-maple-leaf-rag" in songs
     assert "CMajorChordProgressionTwoHands" in songs and "block-octaves" in songs
+    assert "crescendo-scale" in songs
     for song in songs:
         spec = gym.spec(f"pianist/{song}-v0")
         assert spec.kwargs["song"] == song

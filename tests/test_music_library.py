@@ -247,3 +247,26 @@ def test_the_octaves_suite_stretches_each_hand_an_octave_or_a_seventh() -> None:
                 close = [m.pitch for m in notes if abs(m.onset_s - n.onset_s) <= 0.25]
                 widest = max(widest, max(close) - min(close))
         assert widest >= 10, name
+
+
+def test_the_dynamics_suite_marks_loudness() -> None:
+    names = list_songs("dynamics")
+    assert names == ["crescendo-scale", "accents", "voiced-melody", "soft-melody-loud-bass"]
+    songs = {name: load_song(name) for name in names}
+    for name, song in songs.items():
+        assert all(n.finger is not None for n in song.notes)
+        assert "(dynamics)" in song_description(name)
+        assert f"{len(song.notes)} notes" in song_description(name)
+        velocities = [n.velocity for n in song.notes]
+        assert max(velocities) - min(velocities) >= 50, name  # loudness that matters
+    # The crescendo rises to the top of the scale and falls back, both hands alike.
+    right = [n.velocity for n in songs["crescendo-scale"].notes if n.hand == "right"]
+    top = right.index(max(right))
+    assert right[: top + 1] == sorted(right[: top + 1]) and right[0] == right[-1] == 30
+    assert right[top:] == sorted(right[top:], reverse=True) and max(right) == 110
+    # Every third note of the accents is loud; the melody and the bass swap loudness.
+    accented = [n.velocity for n in songs["accents"].notes if n.hand == "right"]
+    assert accented[::3] == [100] * 6 and set(accented[1::3] + accented[2::3]) == {50}
+    for name, melody, bass in (("voiced-melody", 95, 40), ("soft-melody-loud-bass", 40, 105)):
+        hands = {(n.hand, n.velocity) for n in songs[name].notes}
+        assert hands == {("right", melody), ("left", bass)}, name

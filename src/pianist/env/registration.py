@@ -11,7 +11,7 @@ from __future__ import annotations
 import gymnasium as gym
 
 from pianist.music import OPEN_SUITE, list_songs
-from pianist.music.library import OCTAVE_SUITE, ORIGINAL_DEBUG_SUITE
+from pianist.music.library import DYNAMICS_SUITE, OCTAVE_SUITE, ORIGINAL_DEBUG_SUITE
 
 NAMESPACE = "pianist"
 VERSION = 0
@@ -41,6 +41,7 @@ def register_envs() -> list[str]:
         *list_songs("debug"),
         *list_songs(ORIGINAL_DEBUG_SUITE),
         *list_songs(OCTAVE_SUITE),
+        *list_songs(DYNAMICS_SUITE),
         *list_songs(OPEN_SUITE),
     ]
     plain: dict[str, object] = {}

@@ -30,7 +30,7 @@ from pianist.music.transforms import delay
 
 if TYPE_CHECKING:
     from pianist.eval.session import Controller
-    from pianist.music import Song
+    from pianist.music import Note, Song
     from pianist.sim.scene import Scene
 
 METRICS = "metrics.json"
@@ -192,12 +192,6 @@ def write_result(
     Raises:
         MediaError: the folder cannot be written, or a medium fails.
     """
-    from pianist.media.dynamics import (
-        episode_velocities,
-        match_notes,
-        velocity_metrics,
-        with_velocities,
-    )
     from pianist.media.plots import plot_velocities
     from pianist.media.report import key_record, write_key_record, write_report
 
@@ -206,14 +200,8 @@ def write_result(
     check_output_folder(out)
     episode = result.episode
     metrics = dict(result.metrics)
-    performance = episode.performance()
-    velocities = None
-    matched = []
-    if episode.qpos is not None:  # velocities come from the keys' recorded angles
-        velocities = episode_velocities(episode, result.scene)
-        performance = with_velocities(performance, episode.note_events, velocities)
-        metrics.update(velocity_metrics(performance, _score(result)))
-        matched = match_notes(performance, _score(result))
+    performance, velocities, matched, loudness = played_dynamics(result)
+    metrics.update(loudness)
     metrics.update(extra_metrics or {})
     with atomic_dir(out, error=MediaError) as tmp:
         save_npy_atomic(episode.actions, tmp / ACTIONS)
@@ -232,6 +220,41 @@ def write_result(
             write_report([tmp], tmp / REPORT, title=out.name, shown_as=[out])
         names = sorted(p.name for p in tmp.iterdir())
     return [out / name for name in names]
+
+
+def played_dynamics(
+    result: PlayResult,
+) -> tuple[Song, Any, list[tuple[Note, Note]], dict[str, Any]]:
+    """The performance with the velocities its strikes sounded, and how far they are from the
+    score's.
+
+    Returns:
+        The performance (a Song of the notes played, each with its strike's MIDI velocity),
+        the velocity of each note event ((E,) float, NaN for key-off and pedal rows; None
+        when the episode kept no key angles), the (performed, score) pairs of matched notes,
+        and the loudness metrics (:func:`pianist.media.dynamics.velocity_metrics`; empty
+        without key angles).
+    """
+    from pianist.media.dynamics import (
+        episode_velocities,
+        match_notes,
+        velocity_metrics,
+        with_velocities,
+    )
+
+    episode = result.episode
+    performance = episode.performance()
+    if episode.qpos is None:  # velocities come from the keys' recorded angles
+        return performance, None, [], {}
+    velocities = episode_velocities(episode, result.scene)
+    performance = with_velocities(performance, episode.note_events, velocities)
+    score = _score(result)
+    return (
+        performance,
+        velocities,
+        match_notes(performance, score),
+        velocity_metrics(performance, score),
+    )
 
 
 def _score(result: PlayResult) -> Any:

@@ -24,6 +24,7 @@ from typing import Literal
 
 from pianist.music.errors import MidiFileError, MusicError, UnknownSongError
 from pianist.music.fingering import FingeringMode, assign_fingering, ensure_fingering
+from pianist.music.marked_dynamics import DYNAMICS_SONGS, DYNAMICS_SUITE
 from pianist.music.midi import read_midi
 from pianist.music.musicxml import AS_WRITTEN, SCORE_SUFFIXES, read_score, tune_reference
 from pianist.music.notes import LEFT, RIGHT, Note, Song
@@ -221,9 +222,16 @@ _SONGS: dict[str, tuple[str, Callable[[], list[Note]]]] = {
 }
 
 
-#: Suites :func:`list_songs` knows: the debug songs, the original's debug songs, the shipped
-#: open library, and the PIG-based suites of the paper (once ``pianist import-pig`` has run).
-SUITES = ("debug", ORIGINAL_DEBUG_SUITE, OCTAVE_SUITE, OPEN_SUITE, *PIG_SUITES)
+#: The suites built by code, each: song name -> (description, builder of its notes).
+_BUILT_SUITES = {OCTAVE_SUITE: OCTAVE_SONGS, DYNAMICS_SUITE: DYNAMICS_SONGS}
+#: Every built song: name -> (its suite, (description, builder)).
+_BUILT = {
+    name: (suite, entry) for suite, songs in _BUILT_SUITES.items() for name, entry in songs.items()
+}
+#: Suites :func:`list_songs` knows: the debug songs, the original's debug songs, the built
+#: suites, the shipped open library, and the PIG-based suites of the paper (once
+#: ``pianist import-pig`` has run).
+SUITES = ("debug", ORIGINAL_DEBUG_SUITE, OCTAVE_SUITE, DYNAMICS_SUITE, OPEN_SUITE, *PIG_SUITES)
 
 
 def list_songs(suite: str | None = None) -> list[str]:
@@ -232,8 +240,9 @@ def list_songs(suite: str | None = None) -> list[str]:
     Args:
         suite: None or "debug" (the debug songs), "robopianist-debug" (the original's debug
             songs note for note), "octaves" (pieces at an octave's stretch,
-            :mod:`pianist.music.stretch`), "open-etude-12" (the shipped open library), "etude-12" or
-            "repertoire-150" (imported PIG pieces).
+            :mod:`pianist.music.stretch`), "dynamics" (pieces with marked loudness,
+            :mod:`pianist.music.marked_dynamics`), "open-etude-12" (the shipped open
+            library), "etude-12" or "repertoire-150" (imported PIG pieces).
 
     Raises:
         ValueError: unknown suite.
@@ -243,8 +252,8 @@ def list_songs(suite: str | None = None) -> list[str]:
         return list(_SONGS)
     if suite == ORIGINAL_DEBUG_SUITE:
         return list(_ORIGINAL_SONGS)
-    if suite == OCTAVE_SUITE:
-        return list(OCTAVE_SONGS)
+    if suite in _BUILT_SUITES:
+        return list(_BUILT_SUITES[suite])
     if suite == OPEN_SUITE:
         return list_open_songs()
     if suite in PIG_SUITES:
@@ -253,7 +262,7 @@ def list_songs(suite: str | None = None) -> list[str]:
 
 
 def _unknown(name: str) -> UnknownSongError:
-    known = list(_SONGS) + list(_ORIGINAL_SONGS) + list(OCTAVE_SONGS) + list_open_songs()
+    known = list(_SONGS) + list(_ORIGINAL_SONGS) + list(_BUILT) + list_open_songs()
     close = difflib.get_close_matches(name, known, n=3, cutoff=0.5)
     hint = f"did you mean {', '.join(close)}? " if close else ""
     pig = ""
@@ -278,8 +287,9 @@ def song_description(name: str) -> str:
     """
     if name in _SONGS:
         return _SONGS[name][0]
-    if name in OCTAVE_SONGS:
-        return f"{OCTAVE_SONGS[name][0]} ({OCTAVE_SUITE})"
+    if name in _BUILT:
+        suite, (description, _) = _BUILT[name]
+        return f"{description} ({suite})"
     original = _original_name(name)
     if original is not None:
         return f"{_ORIGINAL_SONGS[original][0]} ({ORIGINAL_DEBUG_SUITE})"
@@ -300,8 +310,8 @@ def get_song(name: str) -> Song:
     """
     if name in _SONGS:
         return Song(notes=tuple(_SONGS[name][1]()), name=name)
-    if name in OCTAVE_SONGS:
-        return Song(notes=tuple(OCTAVE_SONGS[name][1]()), name=name)
+    if name in _BUILT:
+        return Song(notes=tuple(_BUILT[name][1][1]()), name=name)
     original = _original_name(name)
     if original is not None:
         return Song(notes=tuple(_ORIGINAL_SONGS[original][1]()), name=original)
@@ -369,7 +379,7 @@ def _load_song(
     if isinstance(name_or_path, Song):
         return name_or_path
     text = os.fspath(name_or_path)
-    builtin = text in _SONGS or text in OCTAVE_SONGS or _original_name(text) is not None
+    builtin = text in _SONGS or text in _BUILT or _original_name(text) is not None
     if isinstance(name_or_path, str) and builtin:
         return get_song(text)
     if isinstance(name_or_path, str) and text in list_open_songs():

@@ -1,0 +1,84 @@
+"""How far the played loudness is from the score's: the default planner on pieces with marked
+dynamics.
+
+For every song (default: the ``dynamics`` suite, :mod:`pianist.music.marked_dynamics`) and
+physics preset, one episode of the default planner (seed 0, as ``pianist play``), and from
+its ``metrics.json`` values:
+
+- ``f1``: the notes;
+- ``velocity mae``: the mean absolute difference, in MIDI velocity (1-127), between each
+  performed note and the score's note it matches (same key, onset within the tolerance of
+  :mod:`pianist.media.dynamics`);
+- ``velocity rho``: the Spearman rank correlation of the two (1: the loud notes played
+  loudest; NaN where the score's notes all have one velocity).
+
+Issue 55's targets are rho >= 0.8 and mae <= 12 per piece with the F1 kept; nothing in the
+planner controls loudness yet, so this measures where it starts.
+
+Run: ``python benchmarks/bench_dynamics.py [--suite dynamics | --songs a,b]
+[--presets faithful,fast] [--json out.json]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+import numpy as np
+
+from pianist.control.planner import IKPlanner
+from pianist.eval.session import play
+from pianist.media.results import played_dynamics
+
+from arguments import preset_list, song_list  # isort: skip  (beside this script)
+
+COLUMNS = ("f1", "velocity mae", "velocity rho")
+
+
+def row(name: str, physics: str) -> dict[str, float]:
+    """The default planner's F1 and loudness error on one song and preset."""
+    result = play(name, IKPlanner(), physics=physics, seed=0)
+    metrics = {**result.metrics, **played_dynamics(result)[3]}
+
+    def number(key: str) -> float:
+        value = metrics.get(key)
+        return float("nan") if value is None else float(value)
+
+    return {
+        "f1": number("f1"),
+        "velocity mae": number("velocity_mae"),
+        "velocity rho": number("velocity_rank_correlation"),
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--suite", default="dynamics")
+    parser.add_argument("--songs", default=None, help="comma-separated songs (instead of --suite)")
+    parser.add_argument("--presets", default="faithful,fast")
+    parser.add_argument("--json", default=None, help="also write the results to this file")
+    args = parser.parse_args()
+    names = song_list(parser, args.songs, args.suite)
+    presets = preset_list(parser, args.presets)
+    print(f"{'song':32s} {'preset':8s} " + " ".join(f"{c:>13s}" for c in COLUMNS))
+    results: dict[str, dict[str, dict[str, float]]] = {preset: {} for preset in presets}
+    for preset in presets:
+        for name in names:
+            values = row(name, preset)
+            results[preset][name] = values
+            cells = " ".join(f"{values[c]:13.3f}" for c in COLUMNS)
+            print(f"{name[:32]:32s} {preset:8s} {cells}", flush=True)
+    means = {
+        preset: {c: float(np.nanmean([r[c] for r in rows.values()])) for c in COLUMNS}
+        for preset, rows in results.items()
+    }
+    for preset, mean in means.items():
+        print(f"{'mean':32s} {preset:8s} " + " ".join(f"{mean[c]:13.3f}" for c in COLUMNS))
+    if args.json:
+        settings = {"suite": None if args.songs else args.suite, "presets": presets}
+        with open(args.json, "w") as f:
+            json.dump({"settings": settings, "mean": means, "songs": results}, f, indent=1)
+
+
+if __name__ == "__main__":
+    main()
