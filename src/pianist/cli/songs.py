@@ -25,12 +25,14 @@ class Songs:
         "debug",
         "robopianist-debug",
         "octaves",
+        "dynamics",
         "open-etude-12",
         "etude-12",
         "repertoire-150",
     ] = "all"
     """Which suite: the debug songs, the original's debug songs note for note, pieces at an
-    octave's stretch, the shipped open library, or imported PIG pieces."""
+    octave's stretch, pieces with marked loudness, the shipped open library, or imported PIG
+    pieces."""
 
     def run(self) -> None:
         from pianist.music import SUITES, PigDatasetError, list_songs, load_song, song_stats
