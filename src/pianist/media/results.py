@@ -230,8 +230,9 @@ def played_dynamics(
 
     Returns:
         The performance (a Song of the notes played, each with its strike's MIDI velocity),
-        the velocity of each note event ((E,) float, NaN for key-off and pedal rows; None
-        when the episode kept no key angles), the (performed, score) pairs of matched notes,
+        the MIDI velocity of each note event ((n,) ints aligned with
+        ``episode.note_events``, 0 for key-off and pedal rows; None when the episode kept no
+        key angles), the (performed, score) pairs of matched notes,
         and the loudness metrics (:func:`pianist.media.dynamics.velocity_metrics`; empty
         without key angles).
     """
