@@ -4,6 +4,10 @@ list must not cost the results before it (the scripts write their JSON only at t
 from __future__ import annotations
 
 import argparse
+import json
+import math
+from collections.abc import Callable
+from typing import Any
 
 PRESETS = ("faithful", "fast")
 
@@ -29,3 +33,39 @@ def preset_list(parser: argparse.ArgumentParser, presets: str) -> list[str]:
     if unknown:
         parser.error(f"unknown physics preset(s) {unknown}; choose from {list(PRESETS)}")
     return names
+
+
+def song_table(
+    names: list[str],
+    presets: list[str],
+    row: Callable[[str, str], dict[str, float]],
+    columns: tuple[str, ...],
+    json_path: str | None,
+    settings: dict[str, Any],
+    width: int = 13,
+) -> None:
+    """Run ``row(song, preset)`` for every preset and song, print each row's ``columns`` as it
+    comes and then each preset's means (NaN cells left out), and write everything (settings,
+    means, rows) to ``json_path`` if given."""
+    results: dict[str, dict[str, dict[str, float]]] = {preset: {} for preset in presets}
+    print(f"{'song':32s} {'preset':8s} " + " ".join(f"{c:>{width}s}" for c in columns))
+    for preset in presets:
+        for name in names:
+            values = results[preset][name] = row(name, preset)
+            cells = " ".join(f"{values[c]:{width}.3f}" for c in columns)
+            print(f"{name[:32]:32s} {preset:8s} {cells}", flush=True)
+    means = {
+        preset: {c: _mean([r[c] for r in rows.values()]) for c in columns}
+        for preset, rows in results.items()
+    }
+    for preset, mean in means.items():
+        print(f"{'mean':32s} {preset:8s} " + " ".join(f"{mean[c]:{width}.3f}" for c in columns))
+    if json_path:
+        with open(json_path, "w") as f:
+            json.dump({"settings": settings, "mean": means, "songs": results}, f, indent=1)
+
+
+def _mean(values: list[float]) -> float:
+    """The mean of the values that are numbers (NaN when none is)."""
+    kept = [v for v in values if not math.isnan(v)]
+    return sum(kept) / len(kept) if kept else float("nan")

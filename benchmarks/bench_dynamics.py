@@ -22,15 +22,12 @@ Run: ``python benchmarks/bench_dynamics.py [--suite dynamics | --songs a,b]
 from __future__ import annotations
 
 import argparse
-import json
-
-import numpy as np
 
 from pianist.control.planner import IKPlanner
 from pianist.eval.session import play
 from pianist.media.results import played_dynamics
 
-from arguments import preset_list, song_list  # isort: skip  (beside this script)
+from arguments import preset_list, song_list, song_table  # isort: skip  (beside this script)
 
 COLUMNS = ("f1", "velocity mae", "velocity rho")
 
@@ -60,24 +57,8 @@ def main() -> None:
     args = parser.parse_args()
     names = song_list(parser, args.songs, args.suite)
     presets = preset_list(parser, args.presets)
-    print(f"{'song':32s} {'preset':8s} " + " ".join(f"{c:>13s}" for c in COLUMNS))
-    results: dict[str, dict[str, dict[str, float]]] = {preset: {} for preset in presets}
-    for preset in presets:
-        for name in names:
-            values = row(name, preset)
-            results[preset][name] = values
-            cells = " ".join(f"{values[c]:13.3f}" for c in COLUMNS)
-            print(f"{name[:32]:32s} {preset:8s} {cells}", flush=True)
-    means = {
-        preset: {c: float(np.nanmean([r[c] for r in rows.values()])) for c in COLUMNS}
-        for preset, rows in results.items()
-    }
-    for preset, mean in means.items():
-        print(f"{'mean':32s} {preset:8s} " + " ".join(f"{mean[c]:13.3f}" for c in COLUMNS))
-    if args.json:
-        settings = {"suite": None if args.songs else args.suite, "presets": presets}
-        with open(args.json, "w") as f:
-            json.dump({"settings": settings, "mean": means, "songs": results}, f, indent=1)
+    settings = {"suite": None if args.songs else args.suite, "presets": presets}
+    song_table(names, presets, row, COLUMNS, args.json, settings)
 
 
 if __name__ == "__main__":

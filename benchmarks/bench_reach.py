@@ -18,14 +18,13 @@ Run: ``python benchmarks/bench_reach.py [--suite octaves | --songs a,b]
 from __future__ import annotations
 
 import argparse
-import json
 
 import numpy as np
 
 from pianist.control.planner import IKPlanner, PlannerConfig
 from pianist.eval.session import play
 
-from arguments import preset_list, song_list  # isort: skip  (beside this script)
+from arguments import preset_list, song_list, song_table  # isort: skip  (beside this script)
 
 VARIANTS = {"whole hand": PlannerConfig(), "straight": PlannerConfig(reach_poses=())}
 
@@ -62,24 +61,8 @@ def main() -> None:
     presets = preset_list(parser, args.presets)
     columns = ("whole hand f1", "straight f1", "gain", "turned share", "ceiling f1")
     columns += ("straight ceiling f1",)
-    print(f"{'song':32s} {'preset':8s} " + " ".join(f"{c:>19s}" for c in columns))
-    results: dict[str, dict[str, dict[str, float]]] = {preset: {} for preset in presets}
-    for preset in presets:
-        for name in names:
-            values = row(name, preset)
-            results[preset][name] = values
-            cells = " ".join(f"{values[c]:19.3f}" for c in columns)
-            print(f"{name[:32]:32s} {preset:8s} {cells}", flush=True)
-    means = {
-        preset: {c: float(np.mean([r[c] for r in rows.values()])) for c in columns}
-        for preset, rows in results.items()
-    }
-    for preset, mean in means.items():
-        print(f"{'mean':32s} {preset:8s} " + " ".join(f"{mean[c]:19.3f}" for c in columns))
-    if args.json:
-        settings = {"suite": None if args.songs else args.suite, "presets": presets}
-        with open(args.json, "w") as f:
-            json.dump({"settings": settings, "mean": means, "songs": results}, f, indent=1)
+    settings = {"suite": None if args.songs else args.suite, "presets": presets}
+    song_table(names, presets, row, columns, args.json, settings, width=19)
 
 
 if __name__ == "__main__":
