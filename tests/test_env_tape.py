@@ -198,3 +198,31 @@ def test_bad_actions_on_the_tape_fail_as_they_would_without_it():
         env.step(np.zeros(env.action_space.shape))
     with pytest.raises(RuntimeError, match="episode is over"):
         env.step(np.zeros(env.action_space.shape))
+
+
+def test_the_segment_search_hands_its_winners_look_ahead_to_the_environment(monkeypatch):
+    """Each segment is played back from the winning candidate's recorded look-ahead: the
+    environment simulates none of its own steps, and the episode is the simulated one."""
+    from pianist.control.search import SegmentSearch
+
+    original = PianoEnv.advance_physics
+    episodes, home_steps = {}, {}
+    for tape in (True, False):
+        forget_plans()
+        search = SegmentSearch(IKPlanner(PlannerConfig(replay_tape=tape)))
+        env = make_env("c-major-chords", search, physics="fast")
+        base, count = env.unwrapped, [0]
+
+        def counted(self, base=base, count=count):
+            count[0] += self is base
+            original(self)
+
+        monkeypatch.setattr(PianoEnv, "advance_physics", counted)
+        episodes[tape] = run_episode(env, search, seed=0)
+        home_steps[tape] = count[0]
+        assert search._segments > 1
+    assert home_steps == {True: 0, False: base.num_steps}
+    for name in ("actions", "active_keys", "qpos", "rewards", "note_events"):
+        np.testing.assert_array_equal(
+            getattr(episodes[True], name), getattr(episodes[False], name), err_msg=name
+        )

@@ -10,7 +10,10 @@ same four things, each with this module:
 2. **restore**: :meth:`LookAhead.start` puts the fork at a snapshot of the episode and the
    controller on the fork with a copy of its memory (:class:`Rewindable`), and
    :meth:`LookAhead.back` returns the controller to the episode with the memory it had;
-3. **play ahead**: :meth:`LookAhead.step` steps the fork;
+3. **play ahead**: :meth:`LookAhead.step` steps the fork, recording its steps on a
+   :class:`~pianist.env.tape.StepTape` when :meth:`LookAhead.start` was asked to, until
+   :meth:`LookAhead.close_tape`; a look-ahead the episode then follows is handed to its
+   environment to play back instead of simulating it again (:meth:`LookAhead.hand_over`);
 4. **score and blame**: :func:`step_misses` gives a step's missed and wrong keys, and
    :func:`blame` the finger answerable for each (a missed key: the finger the plan gives it;
    a wrong key: the fingertip nearest it across the keys), which a caller sums per finger
@@ -27,6 +30,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 import numpy as np
 
 from pianist.env.handle import ControlHandle, control_handle
+from pianist.env.tape import StepTape
 
 if TYPE_CHECKING:
     from pianist.env.piano_env import EnvState, PianoEnv
@@ -56,6 +60,7 @@ class LookAhead:
             controller that is itself looked ahead on another fork moves its home there).
         env: the fork.
         handle: the fork's control handle.
+        tape: the steps played since :meth:`start` (``record=True``) or None.
     """
 
     def __init__(self, home: ControlHandle, seed: int | None = None) -> None:
@@ -64,13 +69,33 @@ class LookAhead:
         self.home = home
         self.env: PianoEnv = home.fork(seed)
         self.handle = control_handle(self.env)
+        self.tape: StepTape | None = None
 
-    def start(self, controller: Rewindable, state: EnvState, memory: Any) -> None:
+    def start(
+        self, controller: Rewindable, state: EnvState, memory: Any, record: bool = False
+    ) -> None:
         """Put the fork at ``state`` (a snapshot of the episode or of the fork) and
-        ``controller`` on the fork with ``memory``."""
+        ``controller`` on the fork with ``memory``; with ``record``, record the steps from
+        there on a new :attr:`tape` (``state`` kept as its start: not to be changed)."""
         self.env.restore(state)
         controller.attach(self.handle)
         controller.set_memory(memory)
+        self.tape = StepTape.begin(self.env, start=state) if record else None
+
+    def close_tape(self, reuse: EnvState | None = None) -> StepTape | None:
+        """End the recording at the fork's state now and return the tape (None if nothing
+        was recorded); the look-ahead's later steps are not on it. ``reuse``: a snapshot done
+        with, whose simulator copy the tape's end takes over."""
+        tape, self.tape = self.tape, None
+        if tape is None or len(tape) == 0:
+            return None
+        return tape.finish(self.env, reuse)
+
+    def hand_over(self, tape: StepTape) -> bool:
+        """Give ``tape`` to the episode's environment to play back while the episode's
+        actions are the tape's (:meth:`pianist.env.PianoEnv.play_tape`); whether it was
+        taken (only from the state it was recorded from)."""
+        return self.home.play_tape(tape)
 
     def back(self, controller: Rewindable, memory: Any) -> None:
         """Put ``controller`` back on the episode's environment with ``memory``."""
@@ -78,9 +103,12 @@ class LookAhead:
         controller.set_memory(memory)
 
     def step(self, action: np.ndarray) -> tuple[bool, dict[str, Any]]:
-        """Step the fork with ``action``: whether the episode ended there (terminated), and
-        the step's info."""
-        _, _, terminated, _, info = self.env.step(action)
+        """Step the fork with ``action`` (on the :attr:`tape` if one is recording): whether
+        the episode ended there (terminated), and the step's info."""
+        if self.tape is not None:
+            _, _, terminated, _, info = self.tape.record(self.env, action)
+        else:
+            _, _, terminated, _, info = self.env.step(action)
         return terminated, info
 
     def snapshot(self, reuse: EnvState | None = None) -> EnvState:

@@ -47,6 +47,7 @@ from pianist.env.handle import control_handle
 if TYPE_CHECKING:
     from pianist.control.planner import IKPlanner
     from pianist.env.piano_env import EnvState
+    from pianist.env.tape import StepTape
     from pianist.music import Song
 
 
@@ -105,6 +106,11 @@ class SegmentSearch(BaseController):
         self._current: tuple[int, ...] = (0,) * len(hands)
         self._segments = 0
         self._seconds = 0.0
+        # Each segment's candidates' recorded look-aheads, the winner's played back by the
+        # environment (the planner's ``replay_tape``), and the segment's start state.
+        self._replay_tape = self.planner.config.replay_tape
+        self._tapes: list[StepTape | None] = []
+        self._state: EnvState | None = None
 
     def act(self, observation: Any = None) -> np.ndarray:
         t = self.handle.step_index
@@ -122,7 +128,12 @@ class SegmentSearch(BaseController):
         on the fork by both hands from the current state, then each hand's best of them
         together (when they differ); the base is left as it was, with the chosen settings."""
         o = self.options
-        state = self.handle.snapshot()
+        # The last segment's start and its tapes' ends are done with (the environment left
+        # its tape at this snapshot at the latest): their simulator copies are reused.
+        state = self.handle.snapshot(reuse=self._state)
+        self._state = state
+        spare_ends = [tape.end for tape in self._tapes if tape is not None and tape.end is not None]
+        self._tapes = []
         memory = self.base.memory()
         end = min(t + o.segment_steps + o.overlap_steps, self.handle.goal.num_frames)
         n_hands = self.chosen.shape[1]
@@ -131,7 +142,7 @@ class SegmentSearch(BaseController):
         hand_costs: list[np.ndarray] = []  # per candidate, (hands,) missed + wrong keys
         for variant in range(len(self.configs)):
             candidate = (variant,) * n_hands
-            loss, cost = self._look_ahead(candidate, t, end, state, memory)
+            loss, cost = self._look_ahead(candidate, t, end, state, memory, spare_ends)
             tried.append(candidate)
             losses.append(loss)
             hand_costs.append(cost)
@@ -142,22 +153,39 @@ class SegmentSearch(BaseController):
             combined = tuple(tried[int(np.argmin(costs[:, h]))][h] for h in range(n_hands))
             if combined not in tried:
                 tried.append(combined)
-                losses.append(self._look_ahead(combined, t, end, state, memory)[0])
+                losses.append(self._look_ahead(combined, t, end, state, memory, spare_ends)[0])
         best = int(np.argmin([loss.sum() for loss in losses]))
         self.predicted_loss[t:end] = losses[best]
         self.look.back(self.base, memory)
         self._use(tried[best])
+        winner = self._tapes[best]
+        if winner is not None:
+            # The segment as the winner played it ahead: the same actions follow from the
+            # same state and memory, so the environment plays it back.
+            self.look.hand_over(winner)
         return tried[best]
 
     def _look_ahead(
-        self, candidate: tuple[int, ...], t: int, end: int, state: EnvState, memory: Any
+        self,
+        candidate: tuple[int, ...],
+        t: int,
+        end: int,
+        state: EnvState,
+        memory: Any,
+        spare_ends: list[EnvState],
     ) -> tuple[np.ndarray, np.ndarray]:
         """Play steps ``t`` to ``end`` on the fork from ``state`` with each hand's variant in
         ``candidate``: (steps,) 1 - F1 of each step, and (hands,) the keys each hand is
         answerable for (a due key not sounding: its planned finger's hand; a key sounding
-        that is not due: the hand of the fingertip nearest it across the keys)."""
-        self.look.start(self.base, state, memory)
+        that is not due: the hand of the fingertip nearest it across the keys).
+
+        The segment's steps (up to ``t + segment_steps``) are recorded; the tape (None if
+        the look-ahead ended before the segment did) is appended to ``_tapes``, its end
+        taking over one of ``spare_ends`` when there is one."""
+        self.look.start(self.base, state, memory, record=self._replay_tape)
         self._use(candidate)
+        segment_end = min(t + self.options.segment_steps, end)
+        tape = None
         goal = self.handle.goal.keys
         fingers = self.planner.fingers
         key_y = self.planner.key_point[:, 1]
@@ -165,6 +193,8 @@ class SegmentSearch(BaseController):
         cost = np.zeros(self.chosen.shape[1])
         for j, step in enumerate(range(t, end)):
             terminated, info = self.look.step(self.base.act(None))
+            if step + 1 == segment_end and not terminated:
+                tape = self.look.close_tape(spare_ends.pop() if spare_ends else None)
             due, active = goal[step], info["active_keys"]
             loss[j] = step_f1_loss(due, active)
             missed, wrong = step_misses(due, active)
@@ -176,6 +206,7 @@ class SegmentSearch(BaseController):
             if terminated:
                 loss[j + 1 :] = 1.0  # the steps it did not play lose everything
                 break
+        self._tapes.append(tape)
         return loss, cost
 
     def _use(self, candidate: tuple[int, ...]) -> None:

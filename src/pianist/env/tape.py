@@ -3,10 +3,11 @@ itself without simulating them again.
 
 The physics is deterministic, so steps taken on a :meth:`PianoEnv.fork` from some state are
 exactly the steps the environment would take from that state with the same actions. A
-controller that has already played a stretch on a fork (the planner's rehearsal) can hand
-the recording to the environment (:meth:`PianoEnv.play_tape`): from then on each step whose
-action is the tape's next returns the recorded outputs and sets the recorded state, at the
-cost of a copy instead of a control step of physics.
+controller that has already played a stretch ahead on a fork (a look-ahead,
+:mod:`pianist.control.lookahead`: the planner's rehearsal of the piece, the segment search's
+winning candidate) can hand the recording to the environment (:meth:`PianoEnv.play_tape`):
+from then on each step whose action is the tape's next returns the recorded outputs and sets
+the recorded state, at the cost of a copy instead of a control step of physics.
 
 A tape plays only in an environment of the same goal frames and configuration, from the
 state it was recorded from (every field of it). While it plays, ``data`` holds each step's
@@ -46,7 +47,7 @@ class Recordable(Protocol):
     goal: Any
 
     def step(self, action: np.ndarray) -> StepOutputs: ...
-    def snapshot(self) -> Any: ...
+    def snapshot(self, reuse: Any = None) -> Any: ...
 
 
 _STATE_FIELDS = ("qpos", "qvel", "act", "ctrl", "userdata")
@@ -96,9 +97,14 @@ class StepTape:
     end: Any = None
 
     @classmethod
-    def begin(cls, env: Recordable) -> StepTape:
-        """A tape starting at ``env``'s current state; step it with :meth:`record`."""
-        return cls(start=env.snapshot(), config=env.config, goal=env.goal)
+    def begin(cls, env: Recordable, start: Any = None) -> StepTape:
+        """A tape starting at ``env``'s current state; step it with :meth:`record`.
+
+        ``start``: a snapshot of ``env`` taken in that very state that the caller will not
+        change (``env`` was just restored to it), to keep instead of taking another."""
+        return cls(
+            start=env.snapshot() if start is None else start, config=env.config, goal=env.goal
+        )
 
     def __len__(self) -> int:
         return len(self.actions)
@@ -123,9 +129,10 @@ class StepTape:
         self.end = None
         return outputs
 
-    def finish(self, env: Recordable) -> StepTape:
-        """Close the tape at ``env``'s current state (after its last recorded step)."""
-        self.end = env.snapshot()
+    def finish(self, env: Recordable, reuse: Any = None) -> StepTape:
+        """Close the tape at ``env``'s current state (after its last recorded step);
+        ``reuse``: a snapshot done with, whose simulator copy the closing one takes over."""
+        self.end = env.snapshot(reuse)
         return self
 
     def state_before(self, index: int) -> tuple[np.ndarray, ...]:
