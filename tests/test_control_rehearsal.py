@@ -4,9 +4,11 @@ import numpy as np
 import pytest
 
 from pianist.control.base import BaseController
+from pianist.control.lookahead import LookAhead
 from pianist.control.planner import IKPlanner, PlannerConfig
 from pianist.control.planner.config import PLAN_CANDIDATES
 from pianist.control.planner.rehearsal import rehearse
+from pianist.env.handle import control_handle
 from pianist.eval import run_episode
 from pianist.eval.session import make_env
 
@@ -79,13 +81,18 @@ def test_a_rehearsal_that_cannot_win_is_given_up_with_a_bound():
     env.reset(seed=0)
     planner.reset(env, seed=0)
     start = planner.memory()
-    fork = env.unwrapped.fork()
-    full, replay = rehearse(planner, fork)
+    look = LookAhead(control_handle(env))
+    state = look.snapshot()
+    look.start(planner, state, start, record=True)
+    full, replay = rehearse(planner, look)
     assert replay is not None and len(replay.actions) == env.unwrapped.goal.num_frames
-    fork = env.unwrapped.fork()
-    planner.set_memory(start)
-    bound, none = rehearse(planner, fork, give_up_at=1.0)
+    assert replay.tape.start is state and len(replay.tape) == len(replay.actions)
+    look.start(planner, state, start, record=True)
+    bound, none = rehearse(planner, look, give_up_at=1.0)
     assert none is None and full <= bound < 1.0
+    look.start(planner, state, start)
+    with pytest.raises(ValueError, match="record=True"):
+        rehearse(planner, look)
 
 
 def test_unknown_plan_candidates_are_refused():

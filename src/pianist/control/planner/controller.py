@@ -211,11 +211,11 @@ class IKPlanner(BaseController):
                 continue  # it would play exactly as that one
             rehearsed.append(plan)
             self._restore(plan)
-            look.start(self, state, start)
+            look.start(self, state, start, record=True)
             give_up = np.inf if best is None else f1_lost(best[0], look.home.num_steps)
             # IKPlanner's own step: a subclass's (a recorder, a corrector) is not rehearsed.
             act = partial(IKPlanner.act, self, None)
-            f1, replay = rehearse(self, look.env, give_up, act, promise)
+            f1, replay = rehearse(self, look, give_up, act, promise)
             self.rehearsed[name] = f1
             if replay is not None and (best is None or f1 > best[0]):
                 best = (f1, plan, replay)

@@ -11,8 +11,9 @@ from the same state, and the performance can replay the winner's actions instead
 computing them again (:class:`Replay`), and the environment its steps instead of simulating
 them again (the rehearsal's :class:`~pianist.env.tape.StepTape`).
 
-Inputs: an :class:`~pianist.control.planner.IKPlanner` just reset (its plan made), and a
-fork of its environment in the reset state (:meth:`pianist.env.handle.ControlHandle.fork`).
+Inputs: an :class:`~pianist.control.planner.IKPlanner` just reset (its plan made), put with
+its memory on a :class:`~pianist.control.lookahead.LookAhead` at the reset state, recording
+(``look.start(planner, state, memory, record=True)``).
 Output: the rehearsal's F1 (the metrics' per-step mean) and its :class:`Replay`.
 """
 
@@ -20,12 +21,13 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Protocol
 
 import numpy as np
 
+from pianist.control.lookahead import LookAhead
 from pianist.control.scoring import step_f1
-from pianist.env.handle import ControlHandle, control_handle
+from pianist.env.handle import ControlHandle
 from pianist.env.tape import StepTape, same_state
 
 
@@ -66,20 +68,21 @@ class Replay:
 
 def rehearse(
     planner: Rehearsable,
-    fork: Any,
+    look: LookAhead,
     give_up_at: float = np.inf,
     act: Callable[[], np.ndarray] | None = None,
     plan_f1: np.ndarray | None = None,
 ) -> tuple[float, Replay | None]:
-    """Play ``planner``'s current plan through on ``fork`` (an environment in the state the
-    planner was reset in; it is stepped to the episode's end) and score it.
+    """Play ``planner``'s current plan through on ``look``'s fork (started with the planner
+    at the state it was reset in, recording; it is stepped to the episode's end) and score
+    it.
 
-    The planner acts on the fork while it rehearses; the caller attaches it back to its own
-    environment and resets its memory afterwards.
+    The planner acts on the fork while it rehearses; the caller brings it back to its own
+    environment with its memory afterwards (``look.back``).
 
     Args:
         planner: the planner, its plan made.
-        fork: the environment to rehearse on.
+        look: the look-ahead to rehearse on, started and recording.
         give_up_at: stop as soon as the steps' F1 lost so far (the sum over steps of
             1 - the step's F1), plus what the steps still to come lose at the least, reaches
             this: another plan lost no more over the whole piece.
@@ -94,19 +97,18 @@ def rehearse(
         The episode F1 (mean over the steps of each step's F1) and the :class:`Replay`; or,
         given up, the most the F1 could still have reached and None.
     """
-    handle = control_handle(fork)
-    planner.attach(handle)
-    steps = max(handle.num_steps, 1)
+    steps = max(look.handle.num_steps, 1)
     # least_lost[t]: the least F1 the steps after step t lose.
     best_case = np.ones(steps) if plan_f1 is None else np.minimum(plan_f1[:steps], 1.0)
     least_lost = np.r_[np.cumsum((1.0 - best_case)[::-1])[::-1][1:], 0.0]
-    tape = StepTape.begin(fork)
+    if look.tape is None:
+        raise ValueError("a rehearsal records its steps: start the look-ahead with record=True")
     actions, memories, f1s = [], [], []
     lost, done = 0.0, False
     while not done:
         action = act() if act is not None else planner.act(None)
-        _, _, terminated, truncated, info = tape.record(fork, action)
-        done = terminated or truncated
+        terminated, info = look.step(action)
+        done = terminated or look.handle.step_index >= look.handle.num_steps
         actions.append(action)
         memories.append(planner.memory())
         f1s.append(float(step_f1(info["active_keys"], info["goal_keys"])))
@@ -114,7 +116,8 @@ def rehearse(
         bound = lost + least_lost[min(len(f1s) - 1, steps - 1)]
         if bound >= give_up_at and not done:
             return float(1.0 - bound / steps), None
-    tape.finish(fork)
+    tape = look.close_tape()
+    assert tape is not None  # at least one step was recorded
     replay = Replay(np.array(actions), tape, memories, planner.finger_states.copy())
     return float(np.mean(f1s)), replay
 
