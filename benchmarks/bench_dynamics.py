@@ -12,29 +12,39 @@ its ``metrics.json`` values:
 - ``velocity rho``: the Spearman rank correlation of the two (1: the loud notes played
   loudest; NaN where the score's notes all have one velocity).
 
-Issue 55's targets are rho >= 0.8 and mae <= 12 per piece with the F1 kept; nothing in the
-planner controls loudness yet, so this measures where it starts.
+Issue 55's targets are rho >= 0.8 and mae <= 12 per piece with the F1 kept. The default
+planner does not control loudness; ``--soft`` plays with its soft strike
+(:data:`SOFT_STRIKE`: notes below velocity 70 pressed from rest, shallower and a frame
+earlier).
 
 Run: ``python benchmarks/bench_dynamics.py [--suite dynamics | --songs a,b]
-[--presets faithful,fast] [--json out.json]``.
+[--presets faithful,fast] [--soft] [--json out.json]``.
 """
 
 from __future__ import annotations
 
 import argparse
+from functools import partial
 
-from pianist.control.planner import IKPlanner
+from pianist.control.planner import IKPlanner, PlannerConfig
 from pianist.eval.session import play
 from pianist.media.results import played_dynamics
 
 from arguments import preset_list, song_list, song_table  # isort: skip  (beside this script)
 
 COLUMNS = ("f1", "velocity mae", "velocity rho")
+#: The planner's soft strike as measured (docs/notes/2026-12-07-soft-strike.md).
+SOFT_STRIKE = {
+    "soft_velocity": 70,
+    "soft_hover_m": 0.0,
+    "soft_depth_ratio": 0.3,
+    "soft_lead_frames": 1,
+}
 
 
-def row(name: str, physics: str) -> dict[str, float]:
-    """The default planner's F1 and loudness error on one song and preset."""
-    result = play(name, IKPlanner(), physics=physics, seed=0)
+def row(name: str, physics: str, config: PlannerConfig) -> dict[str, float]:
+    """The planner's F1 and loudness error on one song and preset."""
+    result = play(name, IKPlanner(config), physics=physics, seed=0)
     metrics = {**result.metrics, **played_dynamics(result)[3]}
 
     def number(key: str) -> float:
@@ -53,12 +63,15 @@ def main() -> None:
     parser.add_argument("--suite", default="dynamics")
     parser.add_argument("--songs", default=None, help="comma-separated songs (instead of --suite)")
     parser.add_argument("--presets", default="faithful,fast")
+    parser.add_argument("--soft", action="store_true", help="with the planner's soft strike")
     parser.add_argument("--json", default=None, help="also write the results to this file")
     args = parser.parse_args()
     names = song_list(parser, args.songs, args.suite)
     presets = preset_list(parser, args.presets)
-    settings = {"suite": None if args.songs else args.suite, "presets": presets}
-    song_table(names, presets, row, COLUMNS, args.json, settings)
+    options = SOFT_STRIKE if args.soft else {}
+    config = PlannerConfig(**options)
+    settings = {"suite": None if args.songs else args.suite, "presets": presets, **options}
+    song_table(names, presets, partial(row, config=config), COLUMNS, args.json, settings)
 
 
 if __name__ == "__main__":

@@ -147,6 +147,20 @@ class PlannerConfig:
     it by friction, so it lands ~1 step sooner from this low path."""
     lift_height_m: float = 0.035
     """Clearance above the white keys of a finger that is not due."""
+
+    # ---- Loudness (targets.py): a soft note struck from rest on its key, shallower.
+    soft_velocity: int = 0
+    """Notes below this MIDI velocity are struck softly (0: none), in songs whose notes'
+    velocities differ (one velocity throughout plays as without)."""
+    soft_hover_m: float = 0.0
+    """Clearance above the key top of a finger due soon on a soft note: resting on it, so
+    the key starts down from the finger's push, not from its fall."""
+    soft_lead_frames: int = 0
+    """Frames earlier than ``press_lead_frames`` a finger starts pressing a soft note's key:
+    a shallow press takes longer to sound."""
+    soft_depth_ratio: float = 1.0
+    """A soft note's press depth as a share of its key's (``white_press_depth_m``,
+    ``black_press_depth_m``) until the key sounds; then the full depth holds it."""
     align_tolerance_m: float = 0.009
     """How close (across the keys) to a white key's press point a finger must be before it
     presses: a finger that lands beside its key sticks to the neighbour by friction."""
@@ -389,6 +403,8 @@ class PlannerState(Protocol):
     """(88,) m: height of each key's top."""
     key_depth: np.ndarray
     """(88,) m: how far below its top a fingertip is sent to press each key."""
+    soft: np.ndarray
+    """(T, 88) bool: the due keys struck softly (``soft_velocity``)."""
     key_qpos: np.ndarray
     """(88,) int: each key's joint in ``qpos``."""
     key_threshold: np.ndarray

@@ -158,6 +158,9 @@ class IKPlanner(BaseController):
         self.key_depth = np.where(
             C.BLACK_KEY_MASK, cfg.black_press_depth_m, cfg.white_press_depth_m
         )
+        velocities = goal.velocities[goal.keys]
+        varied = velocities.size > 0 and velocities.min() != velocities.max()
+        self.soft = goal.keys & (goal.velocities < cfg.soft_velocity) & varied
         self.key_qpos = handle.scene.key_qpos
         self.key_threshold = (
             np.where(C.BLACK_KEY_MASK, C.BLACK_KEY_MAX_ANGLE_RAD, C.WHITE_KEY_MAX_ANGLE_RAD)

@@ -101,9 +101,10 @@ class CachedPlan:
 
 
 def goal_digest(goal: GoalFrames) -> str:
-    """A digest of the goal frames' content a plan depends on: keys, fingers, pedal, step."""
+    """A digest of the goal frames' content a plan and its rehearsal depend on: keys,
+    fingers, pedal, velocities (the soft strikes, ``soft_velocity``), step."""
     h = hashlib.blake2b(digest_size=16)
-    for array in (goal.keys, goal.fingers, goal.sustain):
+    for array in (goal.keys, goal.fingers, goal.sustain, goal.velocities):
         h.update(str(array.shape).encode())
         h.update(np.ascontiguousarray(array).tobytes())
     h.update(repr(float(goal.dt)).encode())

@@ -106,8 +106,13 @@ class FingerTargets:
         key_down = planner.handle.data.qpos[planner.key_qpos] >= planner.key_threshold
         hovering = np.zeros(FINGERS_PER_HAND, dtype=bool)
         pressed_key = np.full(FINGERS_PER_HAND, -1)
-        for frame in (now, lead):
-            for key in np.flatnonzero(goal.keys[frame] & ~self.skip[frame]):
+        early = min(lead + cfg.soft_lead_frames, goal.num_frames - 1)
+        frames = (now, lead) if early == lead else (now, lead, early)
+        for frame in frames:
+            due = goal.keys[frame] & ~self.skip[frame]
+            if frame == early and frame != lead:
+                due &= planner.soft[frame] & ~goal.keys[lead]  # soft onsets, pressed early
+            for key in np.flatnonzero(due):
                 finger = planner.fingers[frame, key] - self.finger_offset
                 if not 0 <= finger < FINGERS_PER_HAND or active[finger]:
                     continue
@@ -154,13 +159,18 @@ class FingerTargets:
                     or holding
                 ):
                     extra = cfg.thumb_extra_depth_m if finger == 0 else 0.0
-                    targets[finger, 2] = top - planner.key_depth[key] - extra
+                    depth = planner.key_depth[key]
+                    if planner.soft[frame, key] and not key_down[key]:
+                        depth = depth * cfg.soft_depth_ratio  # until it sounds
+                    targets[finger, 2] = top - depth - extra
                     self.pressing[finger] = True
                     self.state[finger] = FingerState.PRESSING
                     pressed_key[finger] = key
                 else:
                     transfer = self.last_key[finger] >= 0 and self.last_key[finger] != key
                     height = cfg.transfer_height_m if transfer else cfg.hover_height_m
+                    if planner.soft[frame, key]:
+                        height = min(height, cfg.soft_hover_m)
                     targets[finger, 2] = top + height
                     if cfg.unwedge and self.stuck[finger] >= cfg.stuck_frames and down:
                         # Wedged below the key's top against its side: up and clear first.
@@ -224,12 +234,12 @@ class FingerTargets:
         """Send each finger without a target yet to hover over its key due at ``frame``
         (world frame, in place)."""
         goal = planner.goal
-        height = C.FINGERTIP_CAPSULE_RADIUS_M + cfg.hover_height_m
         for key in np.flatnonzero(goal.keys[frame] & ~self.skip[frame]):
             finger = planner.fingers[frame, key] - self.finger_offset
             if 0 <= finger < FINGERS_PER_HAND and not active[finger]:
+                height = cfg.soft_hover_m if planner.soft[frame, key] else cfg.hover_height_m
                 targets[finger] = self._press_point(planner, int(key), finger, cfg)
-                targets[finger, 2] = planner.key_top_z[key] + height
+                targets[finger, 2] = planner.key_top_z[key] + C.FINGERTIP_CAPSULE_RADIUS_M + height
                 active[finger] = True
 
     def _press_point(
