@@ -13,9 +13,8 @@ its ``metrics.json`` values:
   loudest; NaN where the score's notes all have one velocity).
 
 Issue 55's targets are rho >= 0.8 and mae <= 12 per piece with the F1 kept. The default
-planner does not control loudness; ``--soft`` plays with its soft strike
-(:data:`SOFT_STRIKE`: notes below velocity 70 pressed from rest, shallower and a frame
-earlier).
+planner does not control loudness; ``--soft`` plays with its pushed strikes
+(:data:`SOFT_STRIKE`: notes below velocity 90 brought down at their velocity's speed).
 
 Run: ``python benchmarks/bench_dynamics.py [--suite dynamics | --songs a,b]
 [--presets faithful,fast] [--soft] [--json out.json]``.
@@ -33,13 +32,9 @@ from pianist.media.results import played_dynamics
 from arguments import preset_list, song_list, song_table  # isort: skip  (beside this script)
 
 COLUMNS = ("f1", "velocity mae", "velocity rho")
-#: The planner's soft strike as measured (docs/notes/2026-12-07-soft-strike.md).
-SOFT_STRIKE = {
-    "soft_velocity": 70,
-    "soft_hover_m": 0.0,
-    "soft_depth_ratio": 0.3,
-    "soft_lead_frames": 1,
-}
+#: The planner with its pushed strikes: notes below velocity 90 brought down at the speed
+#: their velocity maps to (pianist.control.planner.strikes).
+SOFT_STRIKE = {"push_below_velocity": 90}
 
 
 def row(name: str, physics: str, config: PlannerConfig) -> dict[str, float]:
@@ -63,7 +58,7 @@ def main() -> None:
     parser.add_argument("--suite", default="dynamics")
     parser.add_argument("--songs", default=None, help="comma-separated songs (instead of --suite)")
     parser.add_argument("--presets", default="faithful,fast")
-    parser.add_argument("--soft", action="store_true", help="with the planner's soft strike")
+    parser.add_argument("--soft", action="store_true", help="with the planner's pushed strikes")
     parser.add_argument("--json", default=None, help="also write the results to this file")
     args = parser.parse_args()
     names = song_list(parser, args.songs, args.suite)

@@ -100,3 +100,17 @@ def speed_to_velocity(speed_m_s: np.ndarray | float) -> np.ndarray:
     safe = np.where(np.isfinite(speed) & (speed > 0), speed, SOFTEST_SPEED_M_S)
     x = np.log(safe / SOFTEST_SPEED_M_S) / math.log(LOUDEST_SPEED_M_S / SOFTEST_SPEED_M_S)
     return (1 + np.round(126 * np.clip(x, 0.0, 1.0))).astype(int)
+
+
+def velocity_to_speed(velocity: np.ndarray | float) -> np.ndarray:
+    """The key speed (m/s at the key's front edge) that :func:`speed_to_velocity` maps to
+    ``velocity`` (MIDI 1..127, clipped to it): the inverse of the curve.
+
+    Args:
+        velocity: MIDI velocities, any shape.
+    Returns:
+        float speeds of the same shape, from :data:`SOFTEST_SPEED_M_S` to
+        :data:`LOUDEST_SPEED_M_S`.
+    """
+    x = (np.clip(np.asarray(velocity, dtype=np.float64), 1.0, 127.0) - 1.0) / 126.0
+    return SOFTEST_SPEED_M_S * (LOUDEST_SPEED_M_S / SOFTEST_SPEED_M_S) ** x

@@ -20,6 +20,7 @@ from pianist.control.planner.hand_plan import HandPlanCosts, Objective
 if TYPE_CHECKING:
     import mujoco
 
+    from pianist.control.planner.strikes import StrikePlan
     from pianist.env.handle import ControlHandle
     from pianist.music import GoalFrames
 
@@ -148,19 +149,30 @@ class PlannerConfig:
     lift_height_m: float = 0.035
     """Clearance above the white keys of a finger that is not due."""
 
-    # ---- Loudness (targets.py): a soft note struck from rest on its key, shallower.
-    soft_velocity: int = 0
-    """Notes below this MIDI velocity are struck softly (0: none), in songs whose notes'
-    velocities differ (one velocity throughout plays as without)."""
-    soft_hover_m: float = 0.0
-    """Clearance above the key top of a finger due soon on a soft note: resting on it, so
-    the key starts down from the finger's push, not from its fall."""
-    soft_lead_frames: int = 0
-    """Frames earlier than ``press_lead_frames`` a finger starts pressing a soft note's key:
-    a shallow press takes longer to sound."""
-    soft_depth_ratio: float = 1.0
-    """A soft note's press depth as a share of its key's (``white_press_depth_m``,
-    ``black_press_depth_m``) until the key sounds; then the full depth holds it."""
+    # ---- Loudness (strikes.py): how fast each key is struck, from its note's velocity.
+    push_below_velocity: int = 0
+    """Notes softer than this MIDI velocity are *pushed* (:mod:`strikes`): their key is
+    brought down along a planned descent at the speed their velocity maps to, the finger's
+    depth fed back from the key's angle. 0: none; in a song of one velocity throughout none
+    is pushed. Louder notes are struck at the servo's full speed."""
+    push_speed_scale: float = 1.0
+    """The key speeds a push plans, as a share of those the velocities map to (its
+    calibration, ``benchmarks/calibrate_strikes.py``)."""
+    push_breakaway_share: float = 0.68
+    """The share of its key's press depth a push starts from: a finger resting on a key
+    starts moving it only at ~70 % of the press depth (18 mm of a white key's 25)."""
+    push_gain: float = 1.0
+    """m of depth a push adds per m of its press point's drop still missing to the planned
+    angle at the step's end."""
+    push_lag_frames: int = 0
+    """Frames before its note's frame a pushed key should sound (the servo's lag)."""
+    push_grace_frames: int = 2
+    """Steps after its planned sounding that a pushed note's finger is still not pushed
+    harder for not sounding its key (``unsounded_push_rad``, ``restrike_push_rad``)."""
+    push_rest_m: float = -0.008
+    """Height above the key top a finger waiting for its push is sent: below it, as the
+    finger's servo falls ~8 mm short of a target above the keys, so that the finger rests on
+    the key and the key goes down from its push, not from its fall."""
     align_tolerance_m: float = 0.009
     """How close (across the keys) to a white key's press point a finger must be before it
     presses: a finger that lands beside its key sticks to the neighbour by friction."""
@@ -403,8 +415,8 @@ class PlannerState(Protocol):
     """(88,) m: height of each key's top."""
     key_depth: np.ndarray
     """(88,) m: how far below its top a fingertip is sent to press each key."""
-    soft: np.ndarray
-    """(T, 88) bool: the due keys struck softly (``soft_velocity``)."""
+    strikes: StrikePlan
+    """How fast each due key is struck (:mod:`strikes`)."""
     key_qpos: np.ndarray
     """(88,) int: each key's joint in ``qpos``."""
     key_threshold: np.ndarray

@@ -46,6 +46,7 @@ from pianist.control.planner.hand_split import HandReach, SplitCosts, split_hand
 from pianist.control.planner.plans import PLANS, CachedPlan, HandPlanArrays, Plan, PlanCache
 from pianist.control.planner.postures import _use_postures
 from pianist.control.planner.rehearsal import Replay, f1_lost, rehearse
+from pianist.control.planner.strikes import plan_strikes
 from pianist.control.scoring import step_f1
 from pianist.env.handle import ControlHandle, control_handle
 from pianist.sim import constants as C
@@ -55,7 +56,18 @@ if TYPE_CHECKING:
 
 #: What a hand remembers between steps (see :class:`FingerTargets`), and what its last step
 #: decided (``state``, ``active``: read by recorders of the planner's decisions).
-_MEMORY = ("pressing", "stuck", "last_tips", "last_key", "unsounded", "state", "active")
+_MEMORY = (
+    "pressing",
+    "stuck",
+    "last_tips",
+    "last_key",
+    "unsounded",
+    "state",
+    "active",
+    "push_key",
+    "push_sound",
+    "push_depth",
+)
 
 
 class IKPlanner(BaseController):
@@ -158,9 +170,9 @@ class IKPlanner(BaseController):
         self.key_depth = np.where(
             C.BLACK_KEY_MASK, cfg.black_press_depth_m, cfg.white_press_depth_m
         )
-        velocities = goal.velocities[goal.keys]
-        varied = velocities.size > 0 and velocities.min() != velocities.max()
-        self.soft = goal.keys & (goal.velocities < cfg.soft_velocity) & varied
+        self.strikes = plan_strikes(
+            goal, cfg.push_below_velocity, cfg.push_lag_frames, cfg.push_speed_scale
+        )
         self.key_qpos = handle.scene.key_qpos
         self.key_threshold = (
             np.where(C.BLACK_KEY_MASK, C.BLACK_KEY_MAX_ANGLE_RAD, C.WHITE_KEY_MAX_ANGLE_RAD)

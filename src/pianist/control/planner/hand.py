@@ -75,6 +75,11 @@ class Hand(HandPostures, ForearmPlan, FingerTargets, FingerIK):
         self.repress = np.zeros(FINGERS_PER_HAND, dtype=bool)
         self.state = np.zeros(FINGERS_PER_HAND, dtype=np.int8)  # FingerState.LIFTED
         self.active = np.zeros(FINGERS_PER_HAND, dtype=bool)
+        # The push each finger is giving (a soft note, see strikes.py): its key (-1: none),
+        # the step its key should sound at and the depth sent the last step (m).
+        self.push_key = np.full(FINGERS_PER_HAND, -1)
+        self.push_sound = np.full(FINGERS_PER_HAND, -1)
+        self.push_depth = np.zeros(FINGERS_PER_HAND)
         # Execution settings of this hand alone (IKPlanner.set_hand_settings); None: the
         # planner's config.
         self.settings: PlannerConfig | None = None

@@ -17,6 +17,7 @@ from enum import IntEnum
 import numpy as np
 
 from pianist.control.planner.config import FINGERS_PER_HAND, PlannerConfig, PlannerState
+from pianist.control.planner.strikes import push_depth
 from pianist.sim import constants as C
 
 
@@ -53,6 +54,9 @@ class FingerTargets:
     shift_to: np.ndarray
     skip: np.ndarray
     # Per-finger memory, (5,), kept here between steps.
+    push_key: np.ndarray
+    push_sound: np.ndarray
+    push_depth: np.ndarray
     pressing: np.ndarray
     stuck: np.ndarray
     last_tips: np.ndarray
@@ -93,7 +97,7 @@ class FingerTargets:
         if self.free[now] and cfg.hover_in_shift:
             # The hand is moving: the fingers of the note it moves for travel with it just
             # above their keys, the others stay lifted.
-            self._hover_over(planner, self.shift_to[now], targets, active, cfg)
+            self._hover_over(planner, self.shift_to[now], targets, active, cfg, None)
             # A finger still on the keys with far to go comes up first (``jump_lift_m``).
             low = real_tips[:, 2] < C.WHITE_KEY_HEIGHT_M + radius + cfg.jump_low_m
             far = active & low & (np.abs(targets[:, 1] - real_tips[:, 1]) > cfg.jump_lift_m)
@@ -106,13 +110,10 @@ class FingerTargets:
         key_down = planner.handle.data.qpos[planner.key_qpos] >= planner.key_threshold
         hovering = np.zeros(FINGERS_PER_HAND, dtype=bool)
         pressed_key = np.full(FINGERS_PER_HAND, -1)
-        early = min(lead + cfg.soft_lead_frames, goal.num_frames - 1)
-        frames = (now, lead) if early == lead else (now, lead, early)
-        for frame in frames:
-            due = goal.keys[frame] & ~self.skip[frame]
-            if frame == early and frame != lead:
-                due &= planner.soft[frame] & ~goal.keys[lead]  # soft onsets, pressed early
-            for key in np.flatnonzero(due):
+        # Fingers pushing a note softly whose frame has not passed: not pushed harder yet.
+        gentle = np.zeros(FINGERS_PER_HAND, dtype=bool)
+        for frame in (now, lead):
+            for key in np.flatnonzero(goal.keys[frame] & ~self.skip[frame]):
                 finger = planner.fingers[frame, key] - self.finger_offset
                 if not 0 <= finger < FINGERS_PER_HAND or active[finger]:
                     continue
@@ -159,18 +160,21 @@ class FingerTargets:
                     or holding
                 ):
                     extra = cfg.thumb_extra_depth_m if finger == 0 else 0.0
-                    depth = planner.key_depth[key]
-                    if planner.soft[frame, key] and not key_down[key]:
-                        depth = depth * cfg.soft_depth_ratio  # until it sounds
-                    targets[finger, 2] = top - depth - extra
+                    targets[finger, 2] = top - planner.key_depth[key] - extra
+                    if planner.strikes.rate[frame, key] and not key_down[key]:
+                        # A pushed note not sounded yet: its own depth (strikes.py).
+                        targets[finger, 2] = self._push(planner, frame, int(key), now, cfg)
+                        gentle[finger] = (
+                            now <= planner.strikes.sound[frame, key] + cfg.push_grace_frames
+                        )
                     self.pressing[finger] = True
                     self.state[finger] = FingerState.PRESSING
                     pressed_key[finger] = key
                 else:
                     transfer = self.last_key[finger] >= 0 and self.last_key[finger] != key
                     height = cfg.transfer_height_m if transfer else cfg.hover_height_m
-                    if planner.soft[frame, key]:
-                        height = min(height, cfg.soft_hover_m)
+                    if planner.strikes.rate[frame, key]:
+                        height = min(height, cfg.push_rest_m)
                     targets[finger, 2] = top + height
                     if cfg.unwedge and self.stuck[finger] >= cfg.stuck_frames and down:
                         # Wedged below the key's top against its side: up and clear first.
@@ -179,6 +183,9 @@ class FingerTargets:
                     self.state[finger] = FingerState.HOVERING
         pushed = self.count_unsounded(pressed_key, key_down, cfg)
         self.mark_represses(let_up, cfg)
+        self.unsounded[gentle] = np.minimum(self.unsounded[gentle], cfg.unsounded_steps - 1)
+        self.repress &= ~gentle
+        pushed &= ~gentle
         self.state[pushed | self.repress] = FingerState.PUSHING
         # A finger keeps its last key while it presses or hovers on its way to the next one.
         self.last_key = np.where(self.pressing, pressed_key, np.where(hovering, self.last_key, -1))
@@ -189,7 +196,7 @@ class FingerTargets:
         for t in range(lead + 1, hover_end if not self.free[now] else lead + 1):
             if self.free[t] and cfg.hover_stops_at_shift:
                 break  # keys past a shift are out of reach from here
-            self._hover_over(planner, t, targets, active, cfg)
+            self._hover_over(planner, t, targets, active, cfg, now)
         self.state[active & (self.state == FingerState.LIFTED)] = FingerState.HOVERING
         self.active = active.copy()
         return targets - origin, active
@@ -230,17 +237,50 @@ class FingerTargets:
         targets: np.ndarray,
         active: np.ndarray,
         cfg: PlannerConfig,
+        now: int | None,
     ) -> None:
         """Send each finger without a target yet to hover over its key due at ``frame``
-        (world frame, in place)."""
+        (world frame, in place); at step ``now`` a pushed note's finger rests on its key or
+        pushes it (``now`` None: the hand is shifting, no push)."""
         goal = planner.goal
+        height = C.FINGERTIP_CAPSULE_RADIUS_M + cfg.hover_height_m
         for key in np.flatnonzero(goal.keys[frame] & ~self.skip[frame]):
             finger = planner.fingers[frame, key] - self.finger_offset
             if 0 <= finger < FINGERS_PER_HAND and not active[finger]:
-                height = cfg.soft_hover_m if planner.soft[frame, key] else cfg.hover_height_m
                 targets[finger] = self._press_point(planner, int(key), finger, cfg)
-                targets[finger, 2] = planner.key_top_z[key] + C.FINGERTIP_CAPSULE_RADIUS_M + height
+                targets[finger, 2] = planner.key_top_z[key] + height
+                if now is not None and planner.strikes.rate[frame, key]:
+                    targets[finger, 2] = self._push(planner, frame, int(key), now, cfg)
                 active[finger] = True
+
+    def _push(
+        self, planner: PlannerState, frame: int, key: int, now: int, cfg: PlannerConfig
+    ) -> float:
+        """The fingertip's target height (m) at step ``now`` for the pushed note of ``key``
+        due at ``frame``, not sounded yet: resting on the key until its push starts, then
+        :func:`~pianist.control.planner.strikes.push_depth` below its top (the push's
+        progress kept per finger in ``push_key``, ``push_sound``, ``push_depth``)."""
+        finger = int(planner.fingers[frame, key]) - self.finger_offset
+        top = planner.key_top_z[key] + C.FINGERTIP_CAPSULE_RADIUS_M
+        plan = planner.strikes
+        if now < plan.start[frame, key]:
+            return top + cfg.push_rest_m
+        sound = int(plan.sound[frame, key])
+        same = self.push_key[finger] == key and self.push_sound[finger] == sound
+        depth = push_depth(
+            plan,
+            frame,
+            key,
+            now,
+            float(planner.handle.data.qpos[planner.key_qpos[key]]),
+            float(self.push_depth[finger]) if same else np.nan,
+            float(planner.key_depth[key]),
+            cfg.push_breakaway_share,
+            float(planner.key_point[key, 0] + C.WHITE_KEY_LENGTH_M / 2),
+            cfg.push_gain,
+        )
+        self.push_key[finger], self.push_sound[finger], self.push_depth[finger] = key, sound, depth
+        return top - depth
 
     def _press_point(
         self, planner: PlannerState, key: int, finger: int, cfg: PlannerConfig | None = None

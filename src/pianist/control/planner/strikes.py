@@ -1,0 +1,140 @@
+"""How fast each key is struck: a note's loudness turned into its key's descent.
+
+A key sounds as loud as it is struck fast: the speed of its front edge as it reaches the
+depth where it sounds, mapped to MIDI velocity by :func:`pianist.env.loudness.speed_to_velocity`.
+A finger sent far below its key from above strikes it as fast as its servo goes: MIDI
+velocity ~80-110 whatever the press depth or hover height
+(docs/notes/2026-12-07-strike-loudness.md). So a softer note is *pushed* along a planned
+descent of its key:
+
+1. **Plan** (:func:`plan_strikes`): the note's velocity gives the key's speed
+   (:func:`pianist.env.loudness.velocity_to_speed`), so an angular rate; the key's planned
+   angle rises at that rate along a line through the angle where it sounds at the end of the
+   note's step (its frame less the servo's lag), from rest to the bottom of its travel. The
+   push starts at the step where that line leaves rest.
+2. **Execute** (:func:`push_depth`, each step): the fingers are position servos that fall well
+   short of their targets under a key's preloaded spring (a finger resting on a key starts
+   moving it only once sent ~70 % of the press depth below its top), so the finger's depth is
+   not planned but fed back: it starts at that breakaway depth and, each step, goes deeper by
+   the press point's drop still missing to the planned angle at the step's end (the key's
+   angle read from the simulator). Before its push the finger rests on the key; once the key
+   has sounded it holds it at the full press depth like any other finger.
+
+Louder notes than ``PlannerConfig.push_below_velocity`` are struck at full speed, and so is
+every note of a song of one velocity throughout (it plays as without pushes).
+
+Inputs: the goal frames (keys and velocities), each key's lever and angles, the control step.
+Output: a :class:`StrikePlan`, (T, 88) arrays read by the fingertip targets (:mod:`targets`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from pianist.env.loudness import KEY_LEVER_M, velocity_to_speed
+from pianist.music import GoalFrames
+from pianist.sim import constants as C
+
+#: (88,) rad: the angle at which each key sounds (its activation threshold).
+SOUND_ANGLE_RAD = C.KEY_MAX_ANGLE_RAD - C.KEY_ACTIVATION_THRESHOLD_RAD
+
+
+@dataclass(frozen=True)
+class StrikePlan:
+    """Per goal frame and key, how the note due there is struck.
+
+    Attributes:
+        rate: (T, 88) rad per control step the key's planned angle rises while it is
+            pushed (0: struck at full speed, or not due).
+        sound: (T, 88) int, the step at whose end the key should reach the angle where it
+            sounds (meaningful where ``rate`` is not 0).
+        start: (T, 88) int, the first step of the push.
+    """
+
+    rate: np.ndarray
+    sound: np.ndarray
+    start: np.ndarray
+
+    @property
+    def pushed(self) -> bool:
+        """Whether any note is pushed."""
+        return bool(self.rate.any())
+
+
+def plan_strikes(
+    goal: GoalFrames, push_below: int, lag_frames: int, speed_scale: float = 1.0
+) -> StrikePlan:
+    """The planned descent of every due note's key from its MIDI velocity.
+
+    Args:
+        goal: the goal frames; a note is a run of frames its key is due (a new run starts
+            where the key was not due the frame before).
+        push_below: notes softer than this MIDI velocity are pushed (0: none); none is in a
+            song whose notes all have one velocity.
+        lag_frames: frames before its note's frame a key should sound (the servo's lag).
+        speed_scale: the key speeds asked for, as a share of those the velocities map to (a
+            calibration of what the execution achieves).
+    Returns:
+        The :class:`StrikePlan`.
+    """
+    keys = goal.keys
+    T = keys.shape[0]
+    starts = keys & ~np.vstack([np.zeros((1, keys.shape[1]), dtype=bool), keys[:-1]])
+    # The frame each due key's note began: the last start at or before it.
+    onset = np.maximum.accumulate(np.where(starts, np.arange(T)[:, None], -1), axis=0)
+    rate = np.zeros(keys.shape)
+    velocities = goal.velocities[keys]
+    if push_below > 0 and velocities.size and velocities.min() != velocities.max():
+        pushed = keys & (goal.velocities < push_below)
+        speed = speed_scale * velocity_to_speed(goal.velocities)  # m/s at the front edge
+        per_step = speed * goal.dt / KEY_LEVER_M[None, :]
+        rate[pushed] = per_step[pushed]
+    sound = np.where(keys, onset - lag_frames, 0)
+    # The first step whose end the planned angle is above rest.
+    lead = SOUND_ANGLE_RAD[None, :] / np.where(rate > 0, rate, np.inf)
+    start = sound - np.ceil(lead - 1e-9).astype(np.int64) + 1
+    return StrikePlan(rate=rate, sound=sound, start=np.where(rate > 0, start, sound))
+
+
+def planned_angle(plan: StrikePlan, frame: int, key: int, step: int) -> float:
+    """The pushed key's planned angle (rad) at the end of ``step``: on the line through the
+    angle where it sounds at the end of its ``sound`` step, from rest to the bottom."""
+    angle = SOUND_ANGLE_RAD[key] + plan.rate[frame, key] * (step - plan.sound[frame, key])
+    return float(min(max(angle, 0.0), C.KEY_MAX_ANGLE_RAD[key]))
+
+
+def push_depth(
+    plan: StrikePlan,
+    frame: int,
+    key: int,
+    now: int,
+    key_angle: float,
+    previous: float,
+    depth_m: float,
+    breakaway_share: float,
+    lever_m: float,
+    gain: float,
+) -> float:
+    """The depth below its key's top (m) a pushing finger is sent at step ``now``.
+
+    Args:
+        plan, frame, key: the note (:class:`StrikePlan`).
+        now: the step.
+        key_angle: the key's angle now (rad, 0 up).
+        previous: the depth sent the step before, NaN at the push's first step.
+        depth_m: the key's full press depth (m).
+        breakaway_share: the share of ``depth_m`` a push starts from.
+        lever_m: the key's hinge-to-press-point length (m).
+        gain: m of depth added per m of the press point's drop still missing.
+    Returns:
+        The depth (m), from the breakaway depth to the full depth: the depth before (the
+        breakaway depth at first) plus ``gain`` times the drop from the key's angle now to
+        its planned angle at the end of this step.
+    """
+    low = breakaway_share * depth_m
+    base = low if math.isnan(previous) else previous
+    missing = planned_angle(plan, frame, key, now) - key_angle
+    return float(min(max(base + gain * lever_m * missing, low), depth_m))
