@@ -25,7 +25,7 @@ from pianist.control.specs import MPCSpec, PlannerSpec, RefineSpec, SearchSpec, 
 
 #: A spec string of every kind, options set where the kind has them.
 EXAMPLES = {
-    "planner": "planner",
+    "planner": "planner:push_below_velocity=90",
     "refine": "refine:candidates=16,horizon_steps=6,sigma=0.2,keep_previous=false",
     "search": "search:refine,segment_steps=5,variants=plain+stiff-wrist",
     "mpc": "mpc:tenth,iterations=2,seed=3,interpolation=linear",
@@ -91,7 +91,8 @@ def test_values_are_typed():
         ("search:mpc", "search option base needs one of planner, refine, not 'mpc'"),
         ("search:variants=plain+louder", "unknown search variants"),
         ("generalist:forearm=sideways", "needs one of plan, policy"),
-        ("planner:fast=1", "planner takes no options"),
+        ("planner:fast=1", "unknown planner option 'fast'; use push_below_velocity"),
+        ("planner:push_below_velocity=-3", "MIDI velocity from 0 to 128, not -3"),
         ("policy:", "needs a path: policy:RUN_DIR"),
         ("mpc:horizon_s=inf", "mpc option horizon_s needs a finite number, not 'inf'"),
         ("refine:wrong_weight=nan", "needs a finite number"),

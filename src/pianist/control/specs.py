@@ -26,13 +26,25 @@ class PlannerSpec(ControllerSpec):
     kind: ClassVar[str] = "planner"
     needs_fingering: ClassVar[bool] = True
 
+    push_below_velocity: int = 0
+    """Play the score's dynamics: notes softer than this MIDI velocity are pushed down at the
+    speed their velocity maps to (``PlannerConfig.push_below_velocity``; 90 plays the dynamics
+    suite's soft notes, at an F1 cost of ~0.03; 0: every note struck at full speed)."""
+
+    def __post_init__(self) -> None:
+        if not 0 <= self.push_below_velocity <= 128:
+            raise ValueError(
+                "planner option push_below_velocity needs a MIDI velocity from 0 to 128, "
+                f"not {self.push_below_velocity}"
+            )
+
     def uses_seed(self) -> bool:
         return False  # the plan and its execution are deterministic
 
     def build(self) -> Controller:
-        from pianist.control.planner import IKPlanner
+        from pianist.control.planner import IKPlanner, PlannerConfig
 
-        return IKPlanner()
+        return IKPlanner(PlannerConfig(push_below_velocity=self.push_below_velocity))
 
 
 @dataclass(frozen=True)

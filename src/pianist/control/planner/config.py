@@ -337,6 +337,11 @@ class PlannerConfig:
         return ((*self.wrist_pose, 0.0, 0.0), *self.reach_poses)
 
     def __post_init__(self) -> None:
+        if not 0 <= self.push_below_velocity <= 128:
+            raise ValueError(
+                "push_below_velocity must be a MIDI velocity from 0 (no pushes) to 128, "
+                f"not {self.push_below_velocity}"
+            )
         unknown = [name for name in self.best_candidates if name not in PLAN_CANDIDATES]
         if not self.best_candidates or unknown:
             raise ValueError(
