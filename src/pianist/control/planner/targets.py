@@ -110,7 +110,8 @@ class FingerTargets:
         key_down = planner.handle.data.qpos[planner.key_qpos] >= planner.key_threshold
         hovering = np.zeros(FINGERS_PER_HAND, dtype=bool)
         pressed_key = np.full(FINGERS_PER_HAND, -1)
-        # Fingers pushing a note softly whose frame has not passed: not pushed harder yet.
+        # Fingers pushing a soft note, until push_grace_frames after it should have sounded:
+        # not pushed harder for not sounding it yet.
         gentle = np.zeros(FINGERS_PER_HAND, dtype=bool)
         for frame in (now, lead):
             for key in np.flatnonzero(goal.keys[frame] & ~self.skip[frame]):
