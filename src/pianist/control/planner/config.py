@@ -158,9 +158,10 @@ class PlannerConfig:
     push_speed_scale: float = 1.0
     """The key speeds a push plans, as a share of those the velocities map to (its
     calibration, ``benchmarks/calibrate_strikes.py``)."""
-    push_breakaway_share: float = 0.68
-    """The share of its key's press depth a push starts from: a finger resting on a key
-    starts moving it only at ~70 % of the press depth (18 mm of a white key's 25)."""
+    push_breakaway_share: tuple[float, float] = (0.68, 0.5)
+    """The share of its key's press depth a push starts from, white and black keys: a finger
+    resting on a white key starts moving it only at ~70 % of the press depth (18 mm of 25),
+    on a black key at ~50 % (of 45 mm; from 0.68 a black key went down within a step)."""
     push_gain: float = 1.0
     """m of depth a push adds per m of its press point's drop still missing to the planned
     angle at the step's end."""

@@ -276,7 +276,7 @@ class FingerTargets:
             float(planner.handle.data.qpos[planner.key_qpos[key]]),
             float(self.push_depth[finger]) if same else np.nan,
             float(planner.key_depth[key]),
-            cfg.push_breakaway_share,
+            cfg.push_breakaway_share[int(C.BLACK_KEY_MASK[key])],
             float(planner.key_point[key, 0] + C.WHITE_KEY_LENGTH_M / 2),
             cfg.push_gain,
         )
