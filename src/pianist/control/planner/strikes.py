@@ -14,11 +14,12 @@ descent of its key:
    push starts at the step where that line leaves rest.
 2. **Execute** (:func:`push_depth`, each step): the fingers are position servos that fall well
    short of their targets under a key's preloaded spring (a finger resting on a key starts
-   moving it only once sent ~70 % of the press depth below its top), so the finger's depth is
-   not planned but fed back: it starts at that breakaway depth and, each step, goes deeper by
-   the press point's drop still missing to the planned angle at the step's end (the key's
-   angle read from the simulator). Before its push the finger rests on the key; once the key
-   has sounded it holds it at the full press depth like any other finger.
+   moving it only once sent ~70 % of the press depth below its top, ~50 % on a black key), so
+   the finger's depth is not planned but fed back: it starts at that breakaway depth and,
+   each step, goes deeper by the press point's drop still missing to the planned angle at
+   the step's end (the key's angle read from the simulator). Before its push the finger
+   rests on the key; once the key has sounded it holds it at the full press depth like any
+   other finger.
 
 Louder notes than ``PlannerConfig.push_below_velocity`` are struck at full speed, and so is
 every note of a song of one velocity throughout (it plays as without pushes).
