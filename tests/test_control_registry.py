@@ -27,7 +27,7 @@ from pianist.control.specs import MPCSpec, PlannerSpec, RefineSpec, SearchSpec, 
 EXAMPLES = {
     "planner": "planner:push_below_velocity=90",
     "refine": "refine:candidates=16,horizon_steps=6,sigma=0.2,keep_previous=false",
-    "search": "search:refine,segment_steps=5,variants=plain+stiff-wrist",
+    "search": "search:refine,segment_steps=5,variants=plain+stiff-wrist,push_below_velocity=80",
     "mpc": "mpc:tenth,iterations=2,seed=3,interpolation=linear",
     "generalist": "generalist:forearm=policy",
     "policy": "policy:runs/twinkle",
@@ -93,6 +93,7 @@ def test_values_are_typed():
         ("generalist:forearm=sideways", "needs one of plan, policy"),
         ("planner:fast=1", "unknown planner option 'fast'; use push_below_velocity"),
         ("planner:push_below_velocity=-3", "MIDI velocity from 0 to 128, not -3"),
+        ("refine:push_below_velocity=200", "refine option push_below_velocity needs a MIDI"),
         ("policy:", "needs a path: policy:RUN_DIR"),
         ("mpc:horizon_s=inf", "mpc option horizon_s needs a finite number, not 'inf'"),
         ("refine:wrong_weight=nan", "needs a finite number"),
@@ -153,6 +154,12 @@ def test_cli_help_of_controller_lists_the_registry(capsys):
 
 def test_refined_puts_the_refiner_in_the_planners_place():
     assert refined(PlannerSpec()) == RefineSpec()
+    # The planner's loudness option goes with it, into the refiner's planner.
+    spec = refined(PlannerSpec(push_below_velocity=90))
+    assert spec == RefineSpec(push_below_velocity=90)
+    assert spec.build().planner.config.push_below_velocity == 90
+    search = SearchSpec(base="refine", push_below_velocity=70).build()
+    assert search.base.planner.config.push_below_velocity == 70
     assert refined(RefineSpec(candidates=3)) == RefineSpec(candidates=3)
     assert refined(SearchSpec(segment_steps=5)) == SearchSpec(base="refine", segment_steps=5)
     with pytest.raises(ValueError, match="--refine refines the planner, not --controller mpc"):

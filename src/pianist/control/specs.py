@@ -17,6 +17,7 @@ from pianist.control.registry import ControllerSpec
 
 if TYPE_CHECKING:
     from pianist.control.base import Controller
+    from pianist.control.planner import IKPlanner
 
 
 @dataclass(frozen=True)
@@ -32,19 +33,28 @@ class PlannerSpec(ControllerSpec):
     suite's soft notes, at an F1 cost of ~0.03; 0: every note struck at full speed)."""
 
     def __post_init__(self) -> None:
-        if not 0 <= self.push_below_velocity <= 128:
-            raise ValueError(
-                "planner option push_below_velocity needs a MIDI velocity from 0 to 128, "
-                f"not {self.push_below_velocity}"
-            )
+        _check_push(self.kind, self.push_below_velocity)
 
     def uses_seed(self) -> bool:
         return False  # the plan and its execution are deterministic
 
     def build(self) -> Controller:
-        from pianist.control.planner import IKPlanner, PlannerConfig
+        return _planner(self.push_below_velocity)
 
-        return IKPlanner(PlannerConfig(push_below_velocity=self.push_below_velocity))
+
+def _check_push(kind: str, velocity: int) -> None:
+    """Refuse a ``push_below_velocity`` that is not a MIDI velocity (one line)."""
+    if not 0 <= velocity <= 128:
+        raise ValueError(
+            f"{kind} option push_below_velocity needs a MIDI velocity from 0 to 128, not {velocity}"
+        )
+
+
+def _planner(push_below_velocity: int) -> IKPlanner:
+    """The planner, pushing notes softer than ``push_below_velocity``."""
+    from pianist.control.planner import IKPlanner, PlannerConfig
+
+    return IKPlanner(PlannerConfig(push_below_velocity=push_below_velocity))
 
 
 @dataclass(frozen=True)
@@ -55,10 +65,17 @@ class RefineSpec(RefineOptions, ControllerSpec):
     kind: ClassVar[str] = "refine"
     needs_fingering: ClassVar[bool] = True
 
+    push_below_velocity: int = 0
+    """The planner's: notes softer than this MIDI velocity pushed (see ``planner``)."""
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        _check_push(self.kind, self.push_below_velocity)
+
     def build(self) -> Controller:
         from pianist.control.refine import Refiner
 
-        return Refiner(options=self)
+        return Refiner(_planner(self.push_below_velocity), options=self)
 
 
 @dataclass(frozen=True)
@@ -73,11 +90,14 @@ class SearchSpec(SearchOptions, ControllerSpec):
 
     base: Literal["planner", "refine"] = "planner"
     """The controller searched over: the planner, or the refiner with its defaults."""
+    push_below_velocity: int = 0
+    """The planner's: notes softer than this MIDI velocity pushed (see ``planner``)."""
 
     def __post_init__(self) -> None:
         if self.base not in ("planner", "refine"):
             raise ValueError(f"search runs over planner or refine, not {self.base!r}")
         super().__post_init__()
+        _check_push(self.kind, self.push_below_velocity)
 
     def uses_seed(self) -> bool:
         return self.base == "refine"  # the refiner's perturbations are drawn from the seed
@@ -87,7 +107,8 @@ class SearchSpec(SearchOptions, ControllerSpec):
         from pianist.control.search import SegmentSearch
 
         options = SearchOptions(self.segment_steps, self.overlap_steps, self.variants)
-        return SegmentSearch(Refiner() if self.base == "refine" else None, options)
+        planner = _planner(self.push_below_velocity)
+        return SegmentSearch(Refiner(planner) if self.base == "refine" else planner, options)
 
 
 @dataclass(frozen=True)
@@ -115,7 +136,7 @@ def refined(spec: ControllerSpec) -> ControllerSpec:
         ValueError: a kind that has no planner to refine.
     """
     if isinstance(spec, PlannerSpec):
-        return RefineSpec()
+        return RefineSpec(push_below_velocity=spec.push_below_velocity)
     if isinstance(spec, SearchSpec):
         return dataclasses.replace(spec, base="refine")
     if isinstance(spec, RefineSpec):
