@@ -1,9 +1,9 @@
-"""How far the played loudness is from the score's: the default planner on pieces with marked
+"""How far the played loudness is from the score's: a controller on pieces with marked
 dynamics.
 
 For every song (default: the ``dynamics`` suite, :mod:`pianist.music.marked_dynamics`) and
-physics preset, one episode of the default planner (seed 0, as ``pianist play``), and from
-its ``metrics.json`` values:
+physics preset, one episode of the controller (default: the planner as ``pianist play``
+plays, seed 0), and from its ``metrics.json`` values:
 
 - ``f1``: the notes;
 - ``velocity mae``: the mean absolute difference, in MIDI velocity (1-127), between each
@@ -12,12 +12,12 @@ its ``metrics.json`` values:
 - ``velocity rho``: the Spearman rank correlation of the two (1: the loud notes played
   loudest; NaN where the score's notes all have one velocity).
 
-Issue 55's targets are rho >= 0.8 and mae <= 12 per piece with the F1 kept. The default
-planner does not control loudness; ``--soft`` plays with its pushed strikes
-(:data:`SOFT_STRIKE`: notes below velocity 90 brought down at their velocity's speed).
+Issue 55's targets are rho >= 0.8 and mae <= 12 per piece, the F1 within 0.005 of the same
+controller without velocity control. The planner controls loudness with its pushed strikes
+(``--controller planner:push_below_velocity=90``; also ``refine:...`` and ``search:...``).
 
 Run: ``python benchmarks/bench_dynamics.py [--suite dynamics | --songs a,b]
-[--presets faithful,fast] [--soft] [--json out.json]``.
+[--presets faithful,fast] [--controller SPEC] [--json out.json]``.
 """
 
 from __future__ import annotations
@@ -25,21 +25,18 @@ from __future__ import annotations
 import argparse
 from functools import partial
 
-from pianist.control.planner import IKPlanner, PlannerConfig
+from pianist.control.registry import ControllerSpec, parse_controller
 from pianist.eval.session import play
 from pianist.media.results import played_dynamics
 
 from arguments import preset_list, song_list, song_table  # isort: skip  (beside this script)
 
 COLUMNS = ("f1", "velocity mae", "velocity rho")
-#: The planner with its pushed strikes: notes below velocity 90 brought down at the speed
-#: their velocity maps to (pianist.control.planner.strikes).
-SOFT_STRIKE = {"push_below_velocity": 90}
 
 
-def row(name: str, physics: str, config: PlannerConfig) -> dict[str, float]:
-    """The planner's F1 and loudness error on one song and preset."""
-    result = play(name, IKPlanner(config), physics=physics, seed=0)
+def row(name: str, physics: str, spec: ControllerSpec) -> dict[str, float]:
+    """The controller's F1 and loudness error on one song and preset."""
+    result = play(name, spec.build(), physics=physics, seed=0)
     metrics = {**result.metrics, **played_dynamics(result)[3]}
 
     def number(key: str) -> float:
@@ -58,15 +55,18 @@ def main() -> None:
     parser.add_argument("--suite", default="dynamics")
     parser.add_argument("--songs", default=None, help="comma-separated songs (instead of --suite)")
     parser.add_argument("--presets", default="faithful,fast")
-    parser.add_argument("--soft", action="store_true", help="with the planner's pushed strikes")
+    parser.add_argument("--controller", default="planner", help="a controller spec")
     parser.add_argument("--json", default=None, help="also write the results to this file")
     args = parser.parse_args()
     names = song_list(parser, args.songs, args.suite)
     presets = preset_list(parser, args.presets)
-    options = SOFT_STRIKE if args.soft else {}
-    config = PlannerConfig(**options)
-    settings = {"suite": None if args.songs else args.suite, "presets": presets, **options}
-    song_table(names, presets, partial(row, config=config), COLUMNS, args.json, settings)
+    try:
+        spec = parse_controller(args.controller)
+    except ValueError as exc:
+        parser.error(str(exc))
+    settings = {"suite": None if args.songs else args.suite, "presets": presets}
+    settings["controller"] = str(spec)
+    song_table(names, presets, partial(row, spec=spec), COLUMNS, args.json, settings)
 
 
 if __name__ == "__main__":

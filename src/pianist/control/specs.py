@@ -30,7 +30,8 @@ class PlannerSpec(ControllerSpec):
     push_below_velocity: int = 0
     """Play the score's dynamics: notes softer than this MIDI velocity are pushed down at the
     speed their velocity maps to (``PlannerConfig.push_below_velocity``; 90 plays the dynamics
-    suite's soft notes, at an F1 cost of ~0.03; 0: every note struck at full speed)."""
+    suite's soft notes, at an F1 cost of ~0.03 that ``refine`` wins back; 0: every note
+    struck at full speed)."""
 
     def __post_init__(self) -> None:
         _check_push(self.kind, self.push_below_velocity)
