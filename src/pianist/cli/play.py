@@ -13,7 +13,7 @@ import tyro
 
 from pianist.cli.common import CliError, SongArg, check_seed
 from pianist.cli.common import out as _out
-from pianist.control.registry import controller_help, parse_controller
+from pianist.control.registry import ControllerSpec, controller_help, parse_controller
 
 #: The help of --controller: every kind with its options, from the registry.
 CONTROLLER_HELP = (
@@ -115,7 +115,7 @@ class Play:
             os.environ.setdefault("MUJOCO_GL", "egl")
         from pianist.control.specs import refined
         from pianist.eval.rollout import realtime_text
-        from pianist.media.results import MediaOptions, play_to_folder
+        from pianist.media.results import MediaOptions, play_to_folder, played_dynamics
         from pianist.music import load_song
 
         # Everything that can be checked before the (long) episode is checked first.
@@ -187,6 +187,26 @@ class Play:
         )
         _out(_errors_line(metrics))
         _out(_f1_lost_line(metrics))
+        dynamics = _dynamics_line(played_dynamics(result)[3], spec)
+        if dynamics:
+            _out(dynamics)
+
+
+def _dynamics_line(metrics: dict, spec: ControllerSpec) -> str:
+    """One line of how far the loudness is from the score's (``metrics``: the loudness
+    metrics, :func:`pianist.media.results.played_dynamics`), for a score whose notes'
+    velocities differ (none for one velocity throughout), with the option that plays them
+    where the planner, the refiner or the search was run without it."""
+    rho = metrics.get("velocity_rank_correlation")
+    if rho is None or not math.isfinite(rho):
+        return ""
+    line = (
+        f"  dynamics: velocity error {metrics['velocity_mae']:.1f} (MIDI units), rank "
+        f"correlation {rho:.2f} over {metrics['velocity_matched_notes']} notes"
+    )
+    if getattr(spec, "push_below_velocity", None) == 0:
+        line += f" (--controller {spec.kind}:push_below_velocity=90 plays the soft notes softly)"
+    return line
 
 
 def _errors_line(metrics: dict) -> str:
