@@ -102,7 +102,7 @@ class CachedPlan:
 
 def goal_digest(goal: GoalFrames) -> str:
     """A digest of the goal frames' content a plan and its rehearsal depend on: keys,
-    fingers, pedal, velocities (the pushed strikes, ``strike_pushes``), step."""
+    fingers, pedal, velocities (the pushed strikes, ``push_below_velocity``), step."""
     h = hashlib.blake2b(digest_size=16)
     for array in (goal.keys, goal.fingers, goal.sustain, goal.velocities):
         h.update(str(array.shape).encode())
