@@ -126,7 +126,8 @@ def parse_refine_options(text: str) -> RefineOptions:
     """The options of ``refine:TEXT`` (the spec's fields are the refiner's options)."""
     spec = parse_controller(f"refine:{text}" if text else "refine")
     assert isinstance(spec, RefineOptions)
-    return RefineOptions(**dataclasses.asdict(spec))
+    fields = dataclasses.fields(RefineOptions)  # the spec adds the planner's option
+    return RefineOptions(**{f.name: getattr(spec, f.name) for f in fields})
 
 
 def test_refine_options_parse_and_refuse():
