@@ -18,14 +18,13 @@ Run: ``python benchmarks/bench_plans.py [--suite open-etude-12 | --songs a,b]
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import time
 
 import numpy as np
 
 from pianist.control.planner import IKPlanner, PlannerConfig, forget_plans
-from pianist.control.planner.config import PLAN_CANDIDATES
+from pianist.control.planner.config import PLAN_CANDIDATES, PlanKind
 from pianist.control.planner.coverage import plan_coverage
 from pianist.eval import run_episode
 from pianist.eval.session import make_env
@@ -43,15 +42,9 @@ CHOOSERS = {
 
 
 def candidate_config(name: str) -> PlannerConfig:
-    """The planner that plays only the candidate plan ``name``."""
-    kind, refinger, objective = PLAN_CANDIDATES[name]
-    base = PlannerConfig()
-    return dataclasses.replace(
-        base,
-        hand_planning=kind,  # type: ignore[arg-type]
-        refinger=refinger,
-        hand_plan=dataclasses.replace(base.hand_plan, objective=objective),
-    )
+    """The planner that plays only the candidate plan ``name`` (one candidate: no
+    rehearsal)."""
+    return PlannerConfig(best_candidates=(name,))
 
 
 def _played(song: str, physics: str, config: PlannerConfig) -> tuple[dict, IKPlanner]:
@@ -81,8 +74,8 @@ def bench_song(song: str, physics: str) -> dict:
     return row
 
 
-def _name(kind: tuple[str, bool, str]) -> str:
-    return next(name for name, known in PLAN_CANDIDATES.items() if known == tuple(kind))
+def _name(kind: PlanKind) -> str:
+    return next(name for name, known in PLAN_CANDIDATES.items() if known == kind)
 
 
 def main() -> None:

@@ -684,16 +684,26 @@ def test_a_finger_holding_its_key_down_keeps_pressing_though_its_tip_slid(keep_s
     assert hand.pressing[finger] == keep_sounding
 
 
-def test_a_pressing_finger_pushes_harder_when_the_keys_bend_the_wrist_up():
+@pytest.mark.parametrize(
+    ("pose", "home_push", "reach_push", "pushed"),
+    [(0, 1.0, 0.0, True), (0, 0.0, 2.0, False), (1, 0.0, 2.0, True), (1, 1.0, 0.0, False)],
+)
+def test_a_pressing_finger_pushes_harder_when_the_keys_bend_the_wrist_up(
+    pose, home_push, reach_push, pushed
+):
     # D major scale, frame 65: the ring finger presses C#5. With the wrist bent up 0.15 rad
-    # (as a chord's keys bend it), its command goes further down by bent_wrist_push * 0.15 rad
-    # along the direction that lowers its tip; with the wrist straight, not at all.
+    # (as a chord's keys bend it), its command goes further down by the push per radian
+    # along the direction that lowers its tip (``bent_wrist_push`` in the home pose,
+    # ``reach_bent_wrist_push`` in a reach pose); with the wrist straight, not at all.
     frame, finger = 65, 3
     env, planner, _ = _step_planner("d-major-scale-right", frame)
-    planner.config = dataclasses.replace(planner.config, bent_wrist_push=1.0)
+    planner.config = dataclasses.replace(
+        planner.config, bent_wrist_push=home_push, reach_bent_wrist_push=reach_push
+    )
     hand, m, scratch = planner.hands[0], planner.model, planner.scratch
     targets, active = hand.fingertip_targets(planner, frame, frame + 5)
     assert hand.pressing[finger]
+    hand.use_pose(pose)
     tips = {}
     for bent in (0.0, 0.15):
         scratch.qpos[:] = env.data.qpos
@@ -703,7 +713,10 @@ def test_a_pressing_finger_pushes_harder_when_the_keys_bend_the_wrist_up():
         hand.fingers[finger].set(scratch, hand.fingers[finger].angles)
         mujoco.mj_kinematics(m, scratch)
         tips[bent] = scratch.site_xpos[hand.sites[finger]].copy()
-    assert tips[0.15][2] < tips[0.0][2] - 0.002, tips
+    if pushed:
+        assert tips[0.15][2] < tips[0.0][2] - 0.002, tips
+    else:
+        np.testing.assert_allclose(tips[0.15], tips[0.0])
 
 
 def test_a_re_strike_is_pushed_down_again_from_its_first_step():

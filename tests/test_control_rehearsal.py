@@ -6,11 +6,13 @@ import pytest
 from pianist.control.base import BaseController
 from pianist.control.lookahead import LookAhead
 from pianist.control.planner import IKPlanner, PlannerConfig
+from pianist.control.planner import controller as planner_controller
 from pianist.control.planner.config import PLAN_CANDIDATES
 from pianist.control.planner.rehearsal import rehearse
 from pianist.env.handle import control_handle
 from pianist.eval import run_episode
 from pianist.eval.session import make_env
+from pianist.music import Note, Song
 
 SONG = "c-major-scale-right"  # the frame-by-frame plan plays it best, the step-F1 plan worst
 
@@ -49,6 +51,38 @@ def test_the_plan_that_rehearses_best_is_played_and_scores_as_rehearsed():
     assert f1 == pytest.approx(rehearsed[winner], abs=1e-12)
     assert planner.plan_kind == PLAN_CANDIDATES[winner]
     assert winner == "frame" and rehearsed["piece-f1"] < f1 - 0.05
+
+
+def test_a_plan_that_differs_late_is_rehearsed_from_there_and_scores_as_played_alone(
+    monkeypatch,
+):
+    # A five-finger melody, then broken octaves, over a bass: the plan that may turn the
+    # wrist anywhere is the step-F1 plan until the octaves (frame 97), and is rehearsed from
+    # shortly before them, on from the state the first rehearsal kept there. Each
+    # candidate's rehearsed F1 is the F1 of its plan played alone, from the start, and the
+    # performance that replays the spliced winner scores it too.
+    notes = [
+        Note(p, 0.2 * i, 0.2 * i + 0.18, finger=i % 5)
+        for i, p in enumerate((60, 62, 64, 65, 67, 65, 64, 62) * 3)
+    ]
+    start = 0.2 * len(notes)
+    for i in range(10):
+        pitch, finger = (60, 0) if i % 2 == 0 else (72, 4)
+        notes.append(Note(pitch, start + 0.25 * i, start + 0.25 * i + 0.23, finger=finger))
+    notes += [Note((43, 48)[i % 2], 0.5 * i, 0.5 * i + 0.48, finger=7) for i in range(15)]
+    song = Song(tuple(notes), name="melody-then-octaves")
+    names = ("piece-f1", "piece-f1-turn")
+    # No rehearsal given up: each rehearsed F1 is then the plan's, not a bound on it.
+    monkeypatch.setattr(planner_controller, "f1_lost", lambda f1, steps: np.inf)
+    planner = IKPlanner(PlannerConfig(best_candidates=names))
+    f1 = _episode(planner, song).metrics()["f1"]
+    assert set(planner.rehearsed) == set(names)
+    later = max(names, key=planner.rehearsed_from.get)
+    assert planner.rehearsed_from[later] > 50  # the melody's 96 frames, less a margin
+    for name in names:
+        alone = _episode(IKPlanner(PlannerConfig(best_candidates=(name,))), song)
+        assert planner.rehearsed[name] == pytest.approx(alone.metrics()["f1"], abs=1e-12)
+    assert f1 == pytest.approx(max(planner.rehearsed.values()), abs=1e-12)
 
 
 def test_choosing_by_playable_key_frames_needs_no_rehearsal():

@@ -106,6 +106,27 @@ class StepTape:
             start=env.snapshot() if start is None else start, config=env.config, goal=env.goal
         )
 
+    @classmethod
+    def spliced(cls, head: StepTape, steps: int, tail: StepTape) -> StepTape:
+        """``head``'s first ``steps`` steps followed by ``tail``, recorded from the state
+        ``head`` was in after them (a look-ahead that left ``head``'s path there).
+
+        Raises:
+            ValueError: ``tail`` does not start ``steps`` steps after ``head``, or is not
+                closed.
+        """
+        if tail.end is None or tail.start_step != head.start_step + steps or steps > len(head):
+            raise ValueError("a spliced tape's tail starts where its head's steps end, closed")
+        return cls(
+            start=head.start,
+            config=head.config,
+            goal=head.goal,
+            actions=head.actions[:steps] + tail.actions,
+            outcomes=head.outcomes[:steps] + tail.outcomes,
+            states=head.states[:steps] + tail.states,
+            end=tail.end,
+        )
+
     def __len__(self) -> int:
         return len(self.actions)
 

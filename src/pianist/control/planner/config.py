@@ -11,7 +11,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Literal, Protocol
+from typing import TYPE_CHECKING, Any, Literal, NamedTuple, Protocol
 
 import numpy as np
 
@@ -26,13 +26,40 @@ if TYPE_CHECKING:
 
 FINGERS_PER_HAND = 5
 FINGER_PREFIXES = ("TH", "FF", "MF", "RF", "LF")
-#: The plans ``hand_planning="best"`` may choose from, by name: (kind, the plan chooses the
-#: fingers, the whole-piece plan's ``HandPlanCosts.objective``).
-PLAN_CANDIDATES: dict[str, tuple[str, bool, Objective]] = {
-    "frame": ("frame", False, "key_frames"),
-    "piece-song": ("piece", False, "key_frames"),
-    "piece": ("piece", True, "key_frames"),
-    "piece-f1": ("piece", True, "step_f1"),
+
+
+class PlanKind(NamedTuple):
+    """How a plan is made: ``kind`` ("frame" by frame, over the whole "piece", or "split"),
+    whether the plan chooses the fingers (``refinger``), what the whole-piece plan counts
+    (``objective``, ``HandPlanCosts.objective``), and whether it may turn a hand's wrist
+    wherever a reach pose helps (``turn``: :data:`TURN_ANYWHERE`), not only for chords
+    struck together that the straight hand cannot span."""
+
+    kind: str
+    refinger: bool
+    objective: Objective
+    turn: bool = False
+
+
+#: The whole-piece plan's weights for a reach pose in a plan that may turn anywhere
+#: (``PlanKind.turn``): a turned hand is counted to lose 5 % of its keys where no chord
+#: wants it (against all of them otherwise) and a key at the edge of a reach pose's reach
+#: 0.1 (against ``edge_cost`` 0.25: an octave's thumb and little finger both are). Broken
+#: octaves (one key at a time, an octave apart) are played turned this way; whether a turn
+#: pays in a piece is left to the rehearsal, which measures it with the physics.
+TURN_ANYWHERE: dict[str, Any] = {
+    "reach_pose_idle_loss": 0.05,
+    "reach_pose_for": "spans",
+    "reach_pose_edge_cost": 0.1,
+}
+
+#: The plans ``hand_planning="best"`` may choose from, by name (:class:`PlanKind`).
+PLAN_CANDIDATES: dict[str, PlanKind] = {
+    "frame": PlanKind("frame", False, "key_frames"),
+    "piece-song": PlanKind("piece", False, "key_frames"),
+    "piece": PlanKind("piece", True, "key_frames"),
+    "piece-f1": PlanKind("piece", True, "step_f1"),
+    "piece-f1-turn": PlanKind("piece", True, "step_f1", turn=True),
 }
 
 
@@ -231,10 +258,12 @@ class PlannerConfig:
     (:mod:`pianist.control.planner.hand_split`; not among the candidates of ``best``: no
     better, and four times slower to plan); or the ``best`` of the
     plans named in ``best_candidates``, chosen as ``choose_plan`` says."""
-    best_candidates: tuple[str, ...] = ("frame", "piece-f1")
+    best_candidates: tuple[str, ...] = ("frame", "piece-f1", "piece-f1-turn")
     """The plans ``hand_planning="best"`` chooses from (:data:`PLAN_CANDIDATES`), in order
     of preference: ``frame`` by frame, or over the whole piece with the plan's fingering
-    counting the per-step F1 the metric scores (``piece-f1``, ``HandPlanCosts.objective``).
+    counting the per-step F1 the metric scores (``piece-f1``, ``HandPlanCosts.objective``),
+    turning a hand's wrist for chords the straight hand cannot span, or wherever a turn
+    helps (``piece-f1-turn``: broken octaves, a hand's notes an octave apart in turn).
     Also known: ``piece``, the same counting lost key-frames, and ``piece-song``, the
     whole-piece plan with the song's fingering: rehearsing them too costs most of an episode
     more per cold start for next to nothing."""
@@ -303,6 +332,11 @@ class PlannerConfig:
     which lifts the finger that comes last (often the little one) ~1 cm off its key: it
     presses level with the key's top without sounding it. Off by default: what it wins on
     real pieces it loses on the original's chord progression."""
+    reach_bent_wrist_push: float = 2.0
+    """``bent_wrist_push`` in a reach pose (the wrist turned and flexed, an octave's stretch),
+    where the little finger holds its key at the edge of its reach: held chords bend the
+    flexed wrist up by ~0.1 rad and the key rises out of sounding (more than 2 presses
+    neighbouring keys)."""
     thumb_push_rad: float = 0.3
     """Extra command of a pressing thumb along the joint direction that lowers its tip."""
     finger_push_rad: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
@@ -384,7 +418,8 @@ WHOLE_HAND_POSES: tuple[tuple[float, float, float, float], ...] = (
 #: default pose the index finger cannot come nearer the thumb than F4 while the thumb holds C4
 #: and the little finger C5, so the plan leaves C4 out (per key 0.0, F1 0.854, fast); with the
 #: second pose every key of C-E-G-C in one hand and two octaves lower in the other sounds in
-#: 0.88-1.0 of its frames (F1 0.885 fast, 0.940 faithful). Not the default: on the ``octaves``
+#: 0.88-1.0 of its frames (F1 0.885 fast, 0.940 faithful, with ``reach_bent_wrist_push``
+#: 0: in the flexed pose the push costs C5, F1 0.82 / 0.86). Not the default: on the ``octaves``
 #: suite (fast) it plays seventh chords better (0.739 -> 0.782) and an octave melody worse
 #: (0.796 -> 0.667), where the plan keeps the flexed, raised hand for the whole melody;
 #: open-etude-12 is unchanged but for two pieces (-0.008, -0.0002).

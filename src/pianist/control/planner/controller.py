@@ -29,7 +29,9 @@ from pianist.control.planner.config import (
     FINGERS_PER_HAND,
     PAPER_ENV_OPTIONS,
     PLAN_CANDIDATES,
+    TURN_ANYWHERE,
     WHOLE_HAND_POSES,
+    PlanKind,
     PlannerConfig,
 )
 from pianist.control.planner.coverage import (
@@ -41,7 +43,6 @@ from pianist.control.planner.coverage import (
 from pianist.control.planner.forearm import _keep_forearms_apart
 from pianist.control.planner.hand import Hand
 from pianist.control.planner.hand_order import uncross_hands
-from pianist.control.planner.hand_plan import Objective
 from pianist.control.planner.hand_split import HandReach, SplitCosts, split_hands
 from pianist.control.planner.plans import PLANS, CachedPlan, HandPlanArrays, Plan, PlanCache
 from pianist.control.planner.postures import _use_postures
@@ -53,6 +54,11 @@ from pianist.sim import constants as C
 
 if TYPE_CHECKING:
     from pianist.music import Song
+
+#: Frames before the first frame at which a candidate plan differs from the first one
+#: rehearsed where its own rehearsal starts (the planner's step reads the plan up to
+#: ``press_lead_frames`` + ``hover_lead_s`` and a shift's window ahead: ~8 frames).
+REHEARSAL_MARGIN_FRAMES = 20
 
 #: What a hand remembers between steps (see :class:`FingerTargets`), and what its last step
 #: decided (``state``, ``active``: read by recorders of the planner's decisions).
@@ -80,7 +86,7 @@ class IKPlanner(BaseController):
     the slide in :meth:`env_options` (:data:`ENV_OPTIONS`).
     """
 
-    plan_kind: tuple[str, bool, Objective]
+    plan_kind: PlanKind
     """How the plan in use was made (:attr:`~pianist.control.planner.plans.Plan.kind`)."""
 
     def __init__(self, config: PlannerConfig | None = None, cache: PlanCache | None = None) -> None:
@@ -97,6 +103,9 @@ class IKPlanner(BaseController):
         given up once it could no longer win, the most it could still have reached; a
         candidate whose plan is the same as an earlier one's is not rehearsed (absent), and
         without rehearsal the dict is empty."""
+        self.rehearsed_from: dict[str, int] = {}
+        """The step each rehearsed candidate's rehearsal started from at the last reset (0:
+        the start; later: the plan is the first one's until then, whose steps it took)."""
 
     # ----------------------------------------------------------------------------- set-up
 
@@ -107,6 +116,7 @@ class IKPlanner(BaseController):
 
     def reset(self, env: gym.Env, seed: int | None = None) -> None:
         self._coverage, self._planned, self._replay, self.rehearsed = None, True, None, {}
+        self.rehearsed_from = {}
         self._whole_hand = None
         self.setup(env)
         goal, handle, cfg = self.goal, self.handle, self.config
@@ -115,6 +125,7 @@ class IKPlanner(BaseController):
             # The same song in the same scene (a new episode): the plan is the same, and so
             # is its rehearsal (replayed only while the episode stays on its path).
             self._replay, self.rehearsed = cached.replay, dict(cached.rehearsed)
+            self.rehearsed_from = dict(cached.rehearsed_from)
             self._restore(cached.plan)
             self._play_tape()
             return
@@ -124,10 +135,10 @@ class IKPlanner(BaseController):
             refinger = cfg.hand_planning == "split" or (
                 cfg.refinger and cfg.hand_planning == "piece"
             )
-            self.plan_kind = (cfg.hand_planning, refinger, cfg.hand_plan.objective)
-            self._plan(goal, *self.plan_kind)
+            self.plan_kind = PlanKind(cfg.hand_planning, refinger, cfg.hand_plan.objective)
+            self._plan(goal, self.plan_kind)
             chosen = self._snapshot(self.plan_kind)
-        entry = CachedPlan(chosen, self._replay, dict(self.rehearsed))
+        entry = CachedPlan(chosen, self._replay, dict(self.rehearsed), dict(self.rehearsed_from))
         self.cache.put(goal, handle.scene.options, cfg, entry)
         self._play_tape()
 
@@ -192,7 +203,7 @@ class IKPlanner(BaseController):
         plans = []
         for name in cfg.best_candidates:
             kind = PLAN_CANDIDATES[name]
-            playable = self._plan(goal, *kind)
+            playable = self._plan(goal, kind)
             promise = step_f1(playable_mask(self), goal.keys)  # (T,) the plan's step F1
             plans.append((name, playable, promise, self._snapshot(kind)))
         if cfg.choose_plan == "rehearsal" and len(plans) > 1:
@@ -214,33 +225,58 @@ class IKPlanner(BaseController):
         first, so the likely winner is found early), a plan the same as one rehearsed
         already is skipped, and a rehearsal is given up once what it has lost, with what
         the steps to come lose even if they score their plan F1, reaches what the best so
-        far lost over the whole piece; of equals the first rehearsed wins.
+        far lost over the whole piece; of equals the first rehearsed wins. A plan the same
+        as the first one until some frame is rehearsed from ``REHEARSAL_MARGIN_FRAMES``
+        before it, on from the state the first one's rehearsal kept there: the steps before
+        are the first one's (a plan that turns a hand for a few bars rehearses those bars
+        and what follows, not the whole piece).
         """
         start = self.memory()
         look = LookAhead(self.handle, seed)
         state = look.snapshot()
-        best: tuple[float, Plan, Replay] | None = None
-        rehearsed: list[Plan] = []
+        order: list[tuple[str, np.ndarray, Plan]] = []
         for name, promise, plan in sorted(plans, key=lambda p: -p[1].mean()):  # stable
-            if any(plan.same_as(other) for other in rehearsed):
-                continue  # it would play exactly as that one
-            rehearsed.append(plan)
+            if not any(plan.same_as(other) for _, _, other in order):
+                order.append((name, promise, plan))  # else it would play exactly as that one
+        first = order[0][2]
+        # Where each later plan leaves the first: the first's rehearsal keeps its state there.
+        leave = {
+            name: first.first_difference(plan) - REHEARSAL_MARGIN_FRAMES
+            for name, _, plan in order[1:]
+        }
+        keep = {k for k in leave.values() if k > 0}
+        head: Replay | None = None
+        best: tuple[float, Plan, Replay] | None = None
+        # IKPlanner's own step: a subclass's (a recorder, a corrector) is not rehearsed.
+        act = partial(IKPlanner.act, self, None)
+        for name, promise, plan in order:
             self._restore(plan)
-            look.start(self, state, start, record=True)
             give_up = np.inf if best is None else f1_lost(best[0], look.home.num_steps)
-            # IKPlanner's own step: a subclass's (a recorder, a corrector) is not rehearsed.
-            act = partial(IKPlanner.act, self, None)
-            f1, replay = rehearse(self, look, give_up, act, promise)
-            self.rehearsed[name] = f1
+            k = leave.get(name, 0) if head is not None else 0
+            f1, replay = np.inf, None
+            if k > 0:
+                assert head is not None  # the first rehearsal is never given up
+                look.start(self, head.states[k], head.memories[k - 1], record=True)
+                f1, replay = rehearse(self, look, give_up, act, promise, after=(head, k))
+                if replay is not None and not np.array_equal(replay.actions[k], head.actions[k]):
+                    f1, replay = np.inf, None  # it left the first's path sooner: from the start
+            if not np.isfinite(f1):
+                k = 0
+                look.start(self, state, start, record=True)
+                f1, replay = rehearse(self, look, give_up, act, promise, keep=keep)
+            self.rehearsed[name], self.rehearsed_from[name] = f1, k
+            if head is None:
+                head = replay
             if replay is not None and (best is None or f1 > best[0]):
                 best = (f1, plan, replay)
-        assert best is not None  # the first rehearsal is never given up
+        assert best is not None and head is not None  # the first is never given up
+        head.states.clear()  # full simulator states, not needed by the replay
         look.back(self, start)
         self.finger_states[:] = 0
         self._replay = best[2]
         return best[1]
 
-    def _snapshot(self, kind: tuple[str, bool, Objective]) -> Plan:
+    def _snapshot(self, kind: PlanKind) -> Plan:
         """The plan just made (its arrays are rebound, never changed, by later plans)."""
         return Plan(kind, self.fingers, tuple(HandPlanArrays.of(hand) for hand in self.hands))
 
@@ -327,13 +363,12 @@ class IKPlanner(BaseController):
             "finger_states": self.finger_states.copy(),
         }
 
-    def _plan(self, goal, kind: str, refinger: bool, objective: Objective = "key_frames") -> int:
-        """Plan the hands' positions, fingers and forearm paths (``kind``: "frame" by frame or
-        over the whole "piece"; ``refinger``: the piece plan chooses the fingers;
-        ``objective``: what the piece plan counts, ``HandPlanCosts.objective``); returns the
+    def _plan(self, goal, how: PlanKind) -> int:
+        """Plan the hands' positions, fingers and forearm paths as ``how`` says; returns the
         key-frames the plan leaves playable."""
         cfg = self.config
-        self._objective = objective
+        self._making = how
+        kind, refinger = how.kind, how.refinger
         if cfg.uncross_hands and len(self.hands) == 2:
             goal = self._uncrossed(goal)
         piece = kind in ("piece", "split")
@@ -418,7 +453,11 @@ class IKPlanner(BaseController):
             goal=goal,
             key_point=self.key_point,
             dt=self.dt,
-            costs=dataclasses.replace(self.config.hand_plan, objective=self._objective),
+            costs=dataclasses.replace(
+                self.config.hand_plan,
+                objective=self._making.objective,
+                **(TURN_ANYWHERE if self._making.turn else {}),
+            ),
             refinger=refinger,
             pose_change_s=self.config.pose_change_s,
         )

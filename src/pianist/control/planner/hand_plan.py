@@ -87,10 +87,19 @@ class HandPlanCosts:
     """... and at every other frame (keys held from earlier among them, or a chord the first
     pose covers): fingers at the edge of the turned hand's reach land less surely, and in
     moving passages they lost more than the keys the straight hand gives up."""
+    reach_pose_edge_cost: float | None = None
+    """``edge_cost`` in a pose other than the first (None: the same). A reach pose is
+    wanted for chords at the edge of what it reaches (an octave's thumb and little finger
+    both are), where the first pose's edge cost would rather leave a key out than play it."""
     reach_pose_window: int = 3
     """Frames before and after a chord that wants a reach pose in which the plan may keep
     a hand in it (elsewhere the pose is not a candidate, so a piece without such chords
     is planned as fast as with one pose)."""
+    reach_pose_for: Literal["chords", "spans"] = "chords"
+    """What wants a reach pose: ``chords`` struck together that the first pose cannot
+    cover from any position, or also (``spans``) a hand's keys within ``reach_pose_window``
+    frames of each other spanning wider than the first pose reaches and no wider than a
+    reach pose does (broken octaves: one key at a time, an octave apart)."""
     objective: Objective = "key_frames"
     """What a lost key costs. ``key_frames``: its weight, the same in every frame.
     ``step_f1``: what it takes from the frame's F1, the metric's unit (F1 per step, averaged
@@ -236,9 +245,13 @@ def plan_hand(
             # are needed nowhere else).
             wanted = _struck_together(mine) & (stays[0].min(axis=1) >= 0.5)
             w = c.reach_pose_window
+            if c.reach_pose_for == "spans":
+                span = _window_span(mine, key_y, w)
+                wanted |= (span > _span(full_k[:1])) & (span <= _span(full_k[1:]))
             near = np.convolve(wanted, np.ones(2 * w + 1))[w : w + T] > 0  # within w frames
             near = np.isin(segment, segment[near])
         keep = slice(None) if q == 0 else near[frames]
+        cq = c if q == 0 else _pose_costs(c)
         if refinger:
             stays.append(
                 _matching_costs(
@@ -251,7 +264,7 @@ def plan_hand(
                     reach_k[q],
                     grid,
                     T,
-                    c,
+                    cq,
                 )
             )
             centres.append(np.full(len(frames), rest_k[q][rest_k.shape[1] // 2]))
@@ -259,7 +272,7 @@ def plan_hand(
             finger_ids = fingers[frames, key_ids]
             lo, hi = full_k[q][finger_ids, colour].T  # (n,) each
             lo_in, hi_in = reach_k[q][finger_ids, colour].T
-            stays.append(_stay_costs(frames, offset, lo, hi, lo_in, hi_in, weights, grid, T, c))
+            stays.append(_stay_costs(frames, offset, lo, hi, lo_in, hi_in, weights, grid, T, cq))
             centres.append(rest_k[q][finger_ids])
     if K == 1:
         wanted = near = np.zeros(T, dtype=bool)
@@ -305,7 +318,7 @@ def plan_hand(
             reach_k,
             outer,
             c.outer_voice_weight,
-            c.edge_cost,
+            (c.edge_cost, _pose_costs(c).edge_cost),
         )
     else:
         planned = np.where(mine, fingers, -1)
@@ -314,6 +327,32 @@ def plan_hand(
         skip[frames, key_ids] = ~_reachable(relative, lo, hi)
     skip |= mine & (planned < 0)
     return HandPlan(position, busy, planned, skip, total, pose)
+
+
+def _span(full_reach: np.ndarray) -> float:
+    """(m) The widest a hand spans in any of the poses ``full_reach`` (K, 5, 2, 2): from the
+    lowest key y any finger reaches to the highest, relative to the slide."""
+    return float(full_reach[..., 1].max() - full_reach[..., 0].min())
+
+
+def _window_span(mine: np.ndarray, key_y: np.ndarray, w: int) -> np.ndarray:
+    """(T,) m: how far apart the hand's due keys (``mine`` (T, 88)) within ``w`` frames of
+    each frame lie along the keyboard (0 where there are none)."""
+    T = mine.shape[0]
+    low = np.where(mine, key_y, np.inf).min(axis=1)
+    high = np.where(mine, key_y, -np.inf).max(axis=1)
+    pad = np.full(w, np.inf)
+    lows = np.lib.stride_tricks.sliding_window_view(np.r_[pad, low, pad], 2 * w + 1)
+    highs = np.lib.stride_tricks.sliding_window_view(np.r_[-pad, high, -pad], 2 * w + 1)
+    span = highs.max(axis=1)[:T] - lows.min(axis=1)[:T]
+    return np.where(np.isfinite(span), span, 0.0)
+
+
+def _pose_costs(c: HandPlanCosts) -> HandPlanCosts:
+    """The costs of a pose other than the first (its own ``edge_cost``)."""
+    if c.reach_pose_edge_cost is None:
+        return c
+    return replace(c, edge_cost=c.reach_pose_edge_cost)
 
 
 def _struck_together(mine: np.ndarray) -> np.ndarray:
@@ -481,7 +520,7 @@ def _assign_fingers(
     reach: np.ndarray,
     outer: str,
     outer_weight: float,
-    edge_cost: float,
+    edge_costs: tuple[float, float],
 ) -> np.ndarray:
     """(T, 88) the finger of each of the hand's due keys at the planned positions and poses
     (``pose`` (T,) into ``full_reach`` / ``reach`` (K, 5, 2, 2)); -1: none.
@@ -504,7 +543,14 @@ def _assign_fingers(
         w = np.ones(len(ids))
         w[extreme] = outer_weight  # the outer voice first
         can, value = _frame_pairs(
-            ids, key_y, black, full_reach[k], reach[k], order, position[t : t + 1], edge_cost
+            ids,
+            key_y,
+            black,
+            full_reach[k],
+            reach[k],
+            order,
+            position[t : t + 1],
+            edge_costs[min(k, 1)],
         )
         value = value * w[:, None, None]
         if t > 0:

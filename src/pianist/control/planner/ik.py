@@ -234,7 +234,8 @@ class FingerIK:
             if self.repress[f]:  # pressing again the key it let up last step
                 amount += cfg.restrike_push_rad[f]
             # The other fingers' keys bend the wrist up and lift this one off its key.
-            amount += cfg.bent_wrist_push * self.wrist_bent_up
+            bent = cfg.reach_bent_wrist_push if self.pose_index > 0 else cfg.bent_wrist_push
+            amount += bent * self.wrist_bent_up
             mujoco.mj_jacSite(m, scratch, self.jacp, None, finger.site)
             down = -finger.jacobian(self.jacp)[2]
             norm = np.linalg.norm(down)

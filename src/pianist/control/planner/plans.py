@@ -16,8 +16,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from pianist.control.planner.config import PlannerConfig
-from pianist.control.planner.hand_plan import Objective
+from pianist.control.planner.config import PlanKind, PlannerConfig
 
 if TYPE_CHECKING:
     from pianist.control.planner.rehearsal import Replay
@@ -75,9 +74,8 @@ class HandPlanArrays:
 class Plan:
     """A candidate plan of both hands."""
 
-    kind: tuple[str, bool, Objective]
-    """How it was made: ``frame`` / ``piece`` / ``split``, whether it chose the fingers, and
-    what the whole-piece plan counted (``PLAN_CANDIDATES``)."""
+    kind: PlanKind
+    """How it was made (``PLAN_CANDIDATES``)."""
     fingers: np.ndarray
     """(T, 88) int: the finger 0-9 of each due key."""
     hands: tuple[HandPlanArrays, ...]
@@ -89,6 +87,24 @@ class Plan:
             a.same_as(b) for a, b in zip(self.hands, other.hands, strict=True)
         )
 
+    def first_difference(self, other: Plan) -> int:
+        """The first frame at which the two plans differ in any per-frame array (the
+        fingering, or a hand's arrays; a path's rows count as frames), or the number of
+        frames if they never do. Before it the two plans' arrays are the same row for row."""
+        T = self.fingers.shape[0]
+        pairs = [(self.fingers, other.fingers)]
+        for a, b in zip(self.hands, other.hands, strict=True):
+            pairs += [
+                (getattr(a, f.name), getattr(b, f.name)) for f in fields(a) if f.name != "tx_servo"
+            ]
+        first = T
+        for x, y in pairs:
+            rows = (np.asarray(x) != np.asarray(y)).reshape(len(x), -1).any(axis=1)
+            differ = np.flatnonzero(rows)
+            if differ.size:
+                first = min(first, int(differ[0]))
+        return first
+
 
 @dataclass(frozen=True)
 class CachedPlan:
@@ -98,6 +114,7 @@ class CachedPlan:
     plan: Plan
     replay: Replay | None
     rehearsed: dict[str, float]
+    rehearsed_from: dict[str, int]
 
 
 def goal_digest(goal: GoalFrames) -> str:

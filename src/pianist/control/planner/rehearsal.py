@@ -19,9 +19,9 @@ Output: the rehearsal's F1 (the metrics' per-step mean) and its :class:`Replay`.
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from dataclasses import dataclass
-from typing import Protocol
+from collections.abc import Callable, Collection
+from dataclasses import dataclass, field
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -54,12 +54,18 @@ class Replay:
             left it, so the planner acts on live from any step where the performance leaves
             the rehearsal's path).
         finger_states: (T, 10) the fingers' states as rehearsed.
+        f1s: (T,) each step's F1.
+        states: the environment's state (an ``EnvState``) before each step asked to be
+            kept (``rehearse``'s ``keep``), by step: where a rehearsal of another plan
+            that is the same until then can start.
     """
 
     actions: np.ndarray
     tape: StepTape
     memories: list[list[dict[str, np.ndarray]]]
     finger_states: np.ndarray
+    f1s: np.ndarray
+    states: dict[int, Any] = field(default_factory=dict)
 
     def on_path(self, step: int, handle: ControlHandle) -> bool:
         """Whether the environment is where the rehearsal was before ``step``."""
@@ -72,10 +78,18 @@ def rehearse(
     give_up_at: float = np.inf,
     act: Callable[[], np.ndarray] | None = None,
     plan_f1: np.ndarray | None = None,
+    keep: Collection[int] = (),
+    after: tuple[Replay, int] | None = None,
 ) -> tuple[float, Replay | None]:
     """Play ``planner``'s current plan through on ``look``'s fork (started with the planner
     at the state it was reset in, recording; it is stepped to the episode's end) and score
     it.
+
+    A plan the same as one rehearsed already up to some step need only be rehearsed from
+    there: ``after`` = (that rehearsal, its step k), with ``look`` started at the state the
+    rehearsal kept before step k (``Replay.states``) and the memory it left after step
+    k - 1. The steps before k are that rehearsal's (their F1, actions, memories and finger
+    states), and the replay returned plays them and then this one's.
 
     The planner acts on the fork while it rehearses; the caller brings it back to its own
     environment with its memory afterwards (``look.back``).
@@ -93,6 +107,8 @@ def rehearse(
             model sometimes sounds (measured on five pieces and three plans each, the steps
             scoring above it add at most 0.015 to an episode's F1, mostly under 0.003), so a
             rehearsal is at times given up that would have won by less than that.
+        keep: steps before which to keep the environment's state (``Replay.states``).
+        after: the rehearsal this one takes its first k steps from, and k (see above).
     Returns:
         The episode F1 (mean over the steps of each step's F1) and the :class:`Replay`; or,
         given up, the most the F1 could still have reached and None.
@@ -103,9 +119,21 @@ def rehearse(
     least_lost = np.r_[np.cumsum((1.0 - best_case)[::-1])[::-1][1:], 0.0]
     if look.tape is None:
         raise ValueError("a rehearsal records its steps: start the look-ahead with record=True")
-    actions, memories, f1s = [], [], []
-    lost, done = 0.0, False
+    actions: list[np.ndarray] = []
+    memories: list[list[dict[str, np.ndarray]]] = []
+    f1s: list[float] = []
+    if after is not None:
+        head, k = after
+        if look.handle.step_index != head.tape.start_step + k:
+            raise ValueError(f"a rehearsal after step {k} of another starts at that step")
+        actions, memories = list(head.actions[:k]), head.memories[:k]
+        f1s = head.f1s[:k].tolist()
+        planner.finger_states[:k] = head.finger_states[:k]
+    states: dict[int, Any] = {}
+    lost, done = float(np.sum(1.0 - np.asarray(f1s))), False
     while not done:
+        if look.handle.step_index in keep:
+            states[look.handle.step_index] = look.snapshot()
         action = act() if act is not None else planner.act(None)
         terminated, info = look.step(action)
         done = terminated or look.handle.step_index >= look.handle.num_steps
@@ -118,8 +146,11 @@ def rehearse(
             return float(1.0 - bound / steps), None
     tape = look.close_tape()
     assert tape is not None  # at least one step was recorded
-    replay = Replay(np.array(actions), tape, memories, planner.finger_states.copy())
-    return float(np.mean(f1s)), replay
+    if after is not None:
+        tape = StepTape.spliced(after[0].tape, after[1], tape)
+    f1 = np.array(f1s)
+    replay = Replay(np.array(actions), tape, memories, planner.finger_states.copy(), f1, states)
+    return float(np.mean(f1)), replay
 
 
 def f1_lost(f1: float, steps: int) -> float:
