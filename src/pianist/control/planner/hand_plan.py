@@ -727,11 +727,19 @@ def _viterbi(
     value = segment_stay[0].copy()
     value[count[0] * P :] = np.inf
     back = np.zeros((S, Q), dtype=np.int32)
+    # The (P, P) costs of moves made with the fingers on the keys, per count of held keys,
+    # and each shift's frames as an index into the frames before a segment (made once: the
+    # loop below runs once per segment, and its (P, P) passes are the plan's cost).
+    on_keys: dict[float, np.ndarray] = {}
+    needed = frames_needed.max(initial=1)
     for s in range(1, S):
         t = starts[s]
         # Key-frames a shift into frame t loses: those of the frames it needs before t.
-        before = lost[t] - lost[np.maximum(t - frames_needed, 0)]
-        move = np.where(shift, before + c.shift_cost, small + moved * held[t] * c.held_move_cost)
+        shift_lost = lost[t] - lost[np.maximum(t - np.arange(needed + 1), 0)] + c.shift_cost
+        keep = on_keys.get(held[t])
+        if keep is None:
+            keep = on_keys[held[t]] = small + moved * held[t] * c.held_move_cost
+        move = np.where(shift, shift_lost[frames_needed], keep)
         turn_cost = lost[t] - lost[max(t - pose_frames, 0)] + c.shift_cost + c.pose_change_cost
         new = np.full(Q, np.inf)
         for b in range(count[s]):
