@@ -178,6 +178,30 @@ def test_a_plan_that_may_turn_anywhere_turns_for_broken_octaves_only():
     assert np.ptp(anywhere.position[:40]) < 1e-9  # the octaves from one place
 
 
+@pytest.mark.parametrize("reach_shift", [None, 0.03])
+def test_a_turned_hand_moves_a_key_at_a_time_with_its_fingers_on_the_keys(reach_shift):
+    # Block octaves, a C major scale: the turned hands move a white key (23.5 mm) a step. With
+    # a reach pose's own largest move made on the keys (``reach_pose_shift_m``, 0.03 m), no
+    # such move is a shift (the fingers are not lifted for it); with the home pose's 15 mm
+    # each is.
+    from pianist.music.library import get_song
+
+    costs = HandPlanCosts(reach_pose_shift_m=reach_shift)
+    config = PlannerConfig(best_candidates=("piece-f1-turn",), hand_plan=costs)
+    _, planner = _reset(get_song("block-octaves"), config)
+    for hand in planner.hands:
+        turned = hand.pose_plan > 0
+        assert turned[planner.goal.keys.any(axis=1)].all()
+        moves = np.flatnonzero(np.abs(np.diff(hand.tx_plan)) > 0.01) + 1
+        key_moves = [k for k in moves if 0.015 < abs(hand.tx_plan[k] - hand.tx_plan[k - 1]) < 0.03]
+        assert len(key_moves) >= 5, hand.side
+        lifted = [k for k in key_moves if hand.free[max(k - 3, 0) : k].any()]
+        if reach_shift is None:
+            assert lifted == key_moves
+        else:
+            assert lifted == []
+
+
 def test_a_reach_pose_has_its_own_edge_cost():
     # An octave in the turned pose, whose thumb and little finger cannot both be inside
     # their inner reach at once: at every position one of them is at its edge, which costs

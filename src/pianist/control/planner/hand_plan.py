@@ -8,12 +8,11 @@ frames costs what the move loses. The cheapest path over the whole piece is the 
   finger cannot press it from p at all (the key-frame is lost), ``edge_cost`` if it can only
   at the edge of its reach (where fingers slip), plus a small ``comfort_cost`` that grows with
   the distance from where the fingers rest over their keys.
-- **Moving** from p to q between frames t-1 and t: a move of up to ``shift_m`` is made with the
-  fingers on the keys and costs a little, more for every key held through it; a larger one
-  (a shift) lifts
-  the hand's fingers for the frames the slide needs to get there (from its servo's measured
-  speed, :func:`move_frames`), so it costs the hand's key-frames due in those frames before t,
-  plus ``shift_cost``.
+- **Moving** from p to q between frames t-1 and t: a move of up to ``shift_m`` (in a reach
+  pose ``reach_pose_shift_m``) is made with the fingers on the keys and costs a little, more
+  for every key held through it; a larger one (a shift) lifts the hand's fingers for the
+  frames the slide needs to get there (from its servo's measured speed, :func:`move_frames`),
+  so it costs the hand's key-frames due in those frames before t, plus ``shift_cost``.
 - **Poses** (given the reach of K poses): every candidate is a position in a pose; a change
   of pose (the wrist turned) is a shift of at least the wrist's frames, and a pose other
   than the first is counted to lose a share of the hand's keys (``reach_pose_loss`` where
@@ -66,6 +65,10 @@ class HandPlanCosts:
     """... capped at this per frame."""
     shift_m: float = 0.015
     """Largest move made with the fingers on the keys."""
+    reach_pose_shift_m: float | None = 0.03
+    """``shift_m`` within a pose other than the first (None: the same). A hand turned for
+    octaves moves a white key (23.5 mm) at a time; with the fingers lifted for each such
+    move it loses two frames of every note, more than the keys it drags."""
     small_move_cost: float = 0.2
     """Cost of a move made with the fingers on the keys ..."""
     small_move_cost_per_m: float = 10.0
@@ -705,6 +708,8 @@ def _viterbi(
     P = len(grid)
     distance = np.abs(grid[:, None] - grid[None, :])  # (from, to), within a pose
     shift = distance > c.shift_m
+    reach_shift_m = c.shift_m if c.reach_pose_shift_m is None else c.reach_pose_shift_m
+    shift_turned = distance > reach_shift_m
     frames_needed = move_frames(distance, dt, c.slide_acceleration_m_s2)  # (P, P)
     moved = distance > 1e-9
     small = np.where(moved, c.small_move_cost + c.small_move_cost_per_m * distance, 0.0)
@@ -740,11 +745,14 @@ def _viterbi(
         if keep is None:
             keep = on_keys[held[t]] = small + moved * held[t] * c.held_move_cost
         move = np.where(shift, shift_lost[frames_needed], keep)
+        move_turned = move
+        if count[s] > 1 and reach_shift_m != c.shift_m:
+            move_turned = np.where(shift_turned, shift_lost[frames_needed], keep)
         turn_cost = lost[t] - lost[max(t - pose_frames, 0)] + c.shift_cost + c.pose_change_cost
         new = np.full(Q, np.inf)
         for b in range(count[s]):
             here = slice(b * P, (b + 1) * P)
-            total = value[here, None] + move  # staying in pose b
+            total = value[here, None] + (move if b == 0 else move_turned)  # staying in pose b
             best = np.argmin(total, axis=0)
             new[here] = total[best, np.arange(P)]
             back[s, here] = best + b * P
