@@ -341,14 +341,16 @@ class ForearmPlan:
         lead = cfg.press_lead_frames
         if not 0 <= cfg.shift_lead_frames <= lead:
             raise ValueError("shift_lead_frames must be between 0 and press_lead_frames")
-        # The whole-piece plan was made knowing which moves it makes with the fingers on the keys.
-        threshold = cfg.hand_plan.shift_m if multi_step else cfg.shift_threshold_m
         # A change of pose is a shift too: the wrist turns with the fingers lifted.
         turns = np.diff(self.pose_plan) != 0
+        # The whole-piece plan was made knowing which moves it makes with the fingers on the keys.
+        threshold = np.full(
+            len(turns), cfg.hand_plan.shift_m if multi_step else cfg.shift_threshold_m
+        )
         if multi_step and cfg.hand_plan.reach_pose_shift_m is not None:
             # Moves within a reach pose may be larger (``HandPlanCosts.reach_pose_shift_m``).
             turned = (self.pose_plan[1:] > 0) & ~turns
-            threshold = np.where(turned, cfg.hand_plan.reach_pose_shift_m, threshold)
+            threshold[turned] = cfg.hand_plan.reach_pose_shift_m
         shifts = np.flatnonzero((np.abs(np.diff(plan)) > threshold) | turns) + 1
         delay = lead - cfg.shift_lead_frames
         # Steps each shift takes: a long jump needs more than one (the slide's servo has a
