@@ -181,13 +181,14 @@ def test_a_plan_that_may_turn_anywhere_turns_for_broken_octaves_only():
 @pytest.mark.parametrize("reach_shift", [None, 0.03])
 def test_a_turned_hand_moves_a_key_at_a_time_with_its_fingers_on_the_keys(reach_shift):
     # Block octaves, a C major scale: the turned hands move a white key (23.5 mm) a step. With
-    # a reach pose's own largest move made on the keys (``reach_pose_shift_m``, 0.03 m), no
-    # such move is a shift (the fingers are not lifted for it); with the home pose's 15 mm
-    # each is.
+    # a reach pose's own largest move made on the keys (``reach_pose_shift_m``, 0.03 m in the
+    # plan that may turn anywhere), no such move is a shift (the fingers are not lifted for
+    # it); with the home pose's 15 mm each is.
     from pianist.music.library import get_song
 
-    costs = HandPlanCosts(reach_pose_shift_m=reach_shift)
-    config = PlannerConfig(best_candidates=("piece-f1-turn",), hand_plan=costs)
+    weights = {**TURN_ANYWHERE, "reach_pose_shift_m": reach_shift}
+    costs = HandPlanCosts(objective="step_f1", **weights)
+    config = PlannerConfig(hand_planning="piece", hand_plan=costs)
     _, planner = _reset(get_song("block-octaves"), config)
     for hand in planner.hands:
         turned = hand.pose_plan > 0

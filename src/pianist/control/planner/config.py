@@ -44,13 +44,15 @@ class PlanKind(NamedTuple):
 #: The whole-piece plan's weights for a reach pose in a plan that may turn anywhere
 #: (``PlanKind.turn``): a turned hand is counted to lose 5 % of its keys where no chord
 #: wants it (against all of them otherwise) and a key at the edge of a reach pose's reach
-#: 0.1 (against ``edge_cost`` 0.25: an octave's thumb and little finger both are). Broken
-#: octaves (one key at a time, an octave apart) are played turned this way; whether a turn
-#: pays in a piece is left to the rehearsal, which measures it with the physics.
+#: 0.1 (against ``edge_cost`` 0.25: an octave's thumb and little finger both are), and a
+#: turned hand moves up to 3 cm (a white key) with its fingers on the keys. Broken octaves
+#: (one key at a time, an octave apart) are played turned this way; whether a turn pays in
+#: a piece is left to the rehearsal, which measures it with the physics.
 TURN_ANYWHERE: dict[str, Any] = {
     "reach_pose_idle_loss": 0.05,
     "reach_pose_for": "spans",
     "reach_pose_edge_cost": 0.1,
+    "reach_pose_shift_m": 0.03,
 }
 
 #: The plans ``hand_planning="best"`` may choose from, by name (:class:`PlanKind`).

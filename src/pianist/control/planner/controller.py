@@ -387,7 +387,9 @@ class IKPlanner(BaseController):
             hand.tx_held = hand.tx_plan  # until its own commands are planned
         for i, hand in enumerate(self.hands):
             other = self.hands[1 - i] if len(self.hands) == 2 else None
-            hand.plan_commands(self.model, self.dt, cfg, piece, hand.played_counts(self), other)
+            hand.plan_commands(
+                self.model, self.dt, self._plan_config(), piece, hand.played_counts(self), other
+            )
         return sum(hand.playable_keyframes(self) for hand in self.hands)
 
     def _uncrossed(self, goal):
@@ -445,6 +447,19 @@ class IKPlanner(BaseController):
             self.fingers[mine] = hand.key_fingers[mine] + hand.finger_offset
             hand.skip = goal.keys & ~(hand.key_fingers >= 0) & hand.own_keys(goal)
 
+    def _plan_config(self) -> PlannerConfig:
+        """The config with the whole-piece plan's weights of the plan being made (its
+        objective, and :data:`TURN_ANYWHERE`'s for a plan that may turn anywhere)."""
+        how = self._making
+        costs = dataclasses.replace(
+            self.config.hand_plan,
+            objective=how.objective,
+            **(TURN_ANYWHERE if how.turn else {}),
+        )
+        if costs == self.config.hand_plan:
+            return self.config
+        return dataclasses.replace(self.config, hand_plan=costs)
+
     def _piece_planner(self, goal, refinger: bool) -> Callable[..., None]:
         """``Hand.plan_piece`` with this song's goal, key points, step and plan weights: call
         it with a hand and the per-call options (``take``, ``drop``, ``extra_cost``)."""
@@ -453,11 +468,7 @@ class IKPlanner(BaseController):
             goal=goal,
             key_point=self.key_point,
             dt=self.dt,
-            costs=dataclasses.replace(
-                self.config.hand_plan,
-                objective=self._making.objective,
-                **(TURN_ANYWHERE if self._making.turn else {}),
-            ),
+            costs=self._plan_config().hand_plan,
             refinger=refinger,
             pose_change_s=self.config.pose_change_s,
         )

@@ -65,10 +65,11 @@ class HandPlanCosts:
     """... capped at this per frame."""
     shift_m: float = 0.015
     """Largest move made with the fingers on the keys."""
-    reach_pose_shift_m: float | None = 0.03
+    reach_pose_shift_m: float | None = None
     """``shift_m`` within a pose other than the first (None: the same). A hand turned for
     octaves moves a white key (23.5 mm) at a time; with the fingers lifted for each such
-    move it loses two frames of every note, more than the keys it drags."""
+    move it loses two frames of every note (the plan that may turn anywhere moves up to
+    0.03 m on the keys, :data:`~pianist.control.planner.config.TURN_ANYWHERE`)."""
     small_move_cost: float = 0.2
     """Cost of a move made with the fingers on the keys ..."""
     small_move_cost_per_m: float = 10.0
