@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from pianist.control.planner import ENV_OPTIONS, IKPlanner, PlannerConfig
-from pianist.control.planner.config import CHORD_REACH_POSES, TURN_ANYWHERE
+from pianist.control.planner.config import CHORD_REACH_POSES, TURN_FOR_SPANS
 from pianist.control.planner.coverage import ceiling_scores, frame_ceiling
 from pianist.control.planner.hand_plan import HandPlanCosts, plan_hand
 from pianist.control.planner.hand_split import HandReach
@@ -149,12 +149,13 @@ def test_plan_hand_chooses_the_pose_per_chord():
     assert (alone.pose == 0).all()
 
 
-def test_a_plan_that_may_turn_anywhere_turns_for_broken_octaves_only():
+def test_a_plan_that_turns_for_spans_turns_for_broken_octaves_only():
     # Broken octaves (C4, then C5, one key at a time, 5 frames each), then a five-finger
     # passage. Counting a turn only for chords struck together, the plan keeps the wrist
-    # straight and leaves one key of each octave out, or leaps for it; allowed to turn
-    # anywhere (TURN_ANYWHERE, the ``piece-f1-turn`` candidate), it turns for the octaves,
-    # plays every key from one place, and is straight again for the five fingers.
+    # straight and leaves one key of each octave out, or leaps for it; turning also for a
+    # hand's keys in turn (TURN_FOR_SPANS, the ``piece-f1-turn`` candidate), it turns for
+    # the octaves, plays every key from one place, and is straight again for the five
+    # fingers.
     key_y, black, straight, turned = _two_pose_line()
     keys = np.zeros((80, 88), dtype=bool)
     for t in range(40):
@@ -172,21 +173,21 @@ def test_a_plan_that_may_turn_anywhere_turns_for_broken_octaves_only():
 
     chords_only = plan(HandPlanCosts(objective="step_f1"))
     assert (chords_only.pose == 0).all()
-    anywhere = plan(HandPlanCosts(objective="step_f1", **TURN_ANYWHERE))
-    assert (anywhere.pose[:40] == 1).all() and (anywhere.pose[50:] == 0).all()
-    assert not anywhere.skip.any()
-    assert np.ptp(anywhere.position[:40]) < 1e-9  # the octaves from one place
+    spans = plan(HandPlanCosts(objective="step_f1", **TURN_FOR_SPANS))
+    assert (spans.pose[:40] == 1).all() and (spans.pose[50:] == 0).all()
+    assert not spans.skip.any()
+    assert np.ptp(spans.position[:40]) < 1e-9  # the octaves from one place
 
 
 @pytest.mark.parametrize("reach_shift", [None, 0.03])
 def test_a_turned_hand_moves_a_key_at_a_time_with_its_fingers_on_the_keys(reach_shift):
     # Block octaves, a C major scale: the turned hands move a white key (23.5 mm) a step. With
     # a reach pose's own largest move made on the keys (``reach_pose_shift_m``, 0.03 m in the
-    # plan that may turn anywhere), no such move is a shift (the fingers are not lifted for
+    # plan that turns for spans), no such move is a shift (the fingers are not lifted for
     # it); with the home pose's 15 mm each is.
     from pianist.music.library import get_song
 
-    weights = {**TURN_ANYWHERE, "reach_pose_shift_m": reach_shift}
+    weights = {**TURN_FOR_SPANS, "reach_pose_shift_m": reach_shift}
     costs = HandPlanCosts(objective="step_f1", **weights)
     config = PlannerConfig(hand_planning="piece", hand_plan=costs)
     _, planner = _reset(get_song("block-octaves"), config)

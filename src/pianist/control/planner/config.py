@@ -32,8 +32,8 @@ class PlanKind(NamedTuple):
     """How a plan is made: ``kind`` ("frame" by frame, over the whole "piece", or "split"),
     whether the plan chooses the fingers (``refinger``), what the whole-piece plan counts
     (``objective``, ``HandPlanCosts.objective``), and whether it may turn a hand's wrist
-    wherever a reach pose helps (``turn``: :data:`TURN_ANYWHERE`), not only for chords
-    struck together that the straight hand cannot span."""
+    also for a hand's keys in turn that span wider than the straight hand (``turn``:
+    :data:`TURN_FOR_SPANS`), not only for chords struck together that it cannot span."""
 
     kind: str
     refinger: bool
@@ -41,14 +41,14 @@ class PlanKind(NamedTuple):
     turn: bool = False
 
 
-#: The whole-piece plan's weights for a reach pose in a plan that may turn anywhere
+#: The whole-piece plan's weights for a reach pose in the plan that turns for spans
 #: (``PlanKind.turn``): a turned hand is counted to lose 5 % of its keys where no chord
 #: wants it (against all of them otherwise) and a key at the edge of a reach pose's reach
 #: 0.1 (against ``edge_cost`` 0.25: an octave's thumb and little finger both are), and a
 #: turned hand moves up to 3 cm (a white key) with its fingers on the keys. Broken octaves
 #: (one key at a time, an octave apart) are played turned this way; whether a turn pays in
 #: a piece is left to the rehearsal, which measures it with the physics.
-TURN_ANYWHERE: dict[str, Any] = {
+TURN_FOR_SPANS: dict[str, Any] = {
     "reach_pose_idle_loss": 0.05,
     "reach_pose_for": "spans",
     "reach_pose_edge_cost": 0.1,

@@ -29,7 +29,7 @@ from pianist.control.planner.config import (
     FINGERS_PER_HAND,
     PAPER_ENV_OPTIONS,
     PLAN_CANDIDATES,
-    TURN_ANYWHERE,
+    TURN_FOR_SPANS,
     WHOLE_HAND_POSES,
     PlanKind,
     PlannerConfig,
@@ -449,12 +449,12 @@ class IKPlanner(BaseController):
 
     def _plan_config(self) -> PlannerConfig:
         """The config with the whole-piece plan's weights of the plan being made (its
-        objective, and :data:`TURN_ANYWHERE`'s for a plan that may turn anywhere)."""
+        objective, and :data:`TURN_FOR_SPANS`'s for the plan that turns for spans)."""
         how = self._making
         costs = dataclasses.replace(
             self.config.hand_plan,
             objective=how.objective,
-            **(TURN_ANYWHERE if how.turn else {}),
+            **(TURN_FOR_SPANS if how.turn else {}),
         )
         if costs == self.config.hand_plan:
             return self.config

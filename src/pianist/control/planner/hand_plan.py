@@ -68,8 +68,8 @@ class HandPlanCosts:
     reach_pose_shift_m: float | None = None
     """``shift_m`` within a pose other than the first (None: the same). A hand turned for
     octaves moves a white key (23.5 mm) at a time; with the fingers lifted for each such
-    move it loses two frames of every note (the plan that may turn anywhere moves up to
-    0.03 m on the keys, :data:`~pianist.control.planner.config.TURN_ANYWHERE`)."""
+    move it loses two frames of every note (the plan that turns for spans moves up to
+    0.03 m on the keys, :data:`~pianist.control.planner.config.TURN_FOR_SPANS`)."""
     small_move_cost: float = 0.2
     """Cost of a move made with the fingers on the keys ..."""
     small_move_cost_per_m: float = 10.0
