@@ -49,8 +49,10 @@ def misses(song: str, physics: str) -> dict:
         observation, _, terminated, truncated, info = env.step(planner.act(observation))
         sounding = info["active_keys"]
         planned = np.zeros_like(goal[t])
-        for hand in planner.hands:
-            for key in np.flatnonzero(goal[t] & ~hand.skip[t]).tolist():
+        for hand, arrays, memory in zip(
+            planner.hands, planner.plan.hands, planner.memories, strict=True
+        ):
+            for key in np.flatnonzero(goal[t] & ~arrays.skip[t]).tolist():
                 finger = int(planner.fingers[t, key]) - hand.finger_offset
                 if not 0 <= finger < 5:
                     continue  # the other hand's
@@ -58,9 +60,9 @@ def misses(song: str, physics: str) -> dict:
                 due[finger] += 1
                 if sounding[key]:
                     continue
-                state = FingerState(int(hand.state[finger])).name.lower()
+                state = FingerState(int(memory.state[finger])).name.lower()
                 missed[state][finger] += 1
-                if state == "lifted" and hand.free[t] and t > 0 and goal[t - 1, key]:
+                if state == "lifted" and arrays.free[t] and t > 0 and goal[t - 1, key]:
                     held_in_shift += 1
                 if state in across:
                     tip = data.site_xpos[hand.sites[finger], 1]

@@ -39,10 +39,10 @@ def row(name: str, physics: str) -> dict[str, float]:
         if label == "whole hand":
             due = planner.goal.keys
             turned = np.zeros(due.shape, dtype=bool)
-            for hand in planner.hands:
+            for hand, arrays in zip(planner.hands, planner.plan.hands, strict=True):
                 local = planner.fingers - hand.finger_offset
                 mine = due & (local >= 0) & (local < 5)
-                turned |= mine & (hand.pose_plan > 0)[:, None]
+                turned |= mine & (arrays.pose_plan > 0)[:, None]
             out["turned share"] = float(turned.sum() / max(due.sum(), 1))
             out["ceiling f1"] = float(result.metrics["reach_ceiling_f1"])
             out["straight ceiling f1"] = float(result.metrics["reach_ceiling_straight_f1"])

@@ -156,8 +156,8 @@ class _ReplayPushes(_Replay):
 
     def act(self, observation=None):
         action = super().act(observation)
-        mine = np.concatenate([h.repress for h in self.stages.hands])
-        theirs = np.concatenate([h.repress for h in self.expert.hands])
+        mine = np.concatenate([m.repress for m in self.stages.memories])
+        theirs = np.concatenate([m.repress for m in self.expert.memories])
         self.pushes.append((mine.copy(), theirs.copy()))
         return action
 
@@ -246,8 +246,8 @@ class _Slides(FingertipController):
         if not hasattr(self, "trace"):
             self.trace = []
         data, t = self.stages.handle.data, self.stages.handle.step_index
-        for hand in self.stages.hands:
-            self.trace.append((hand.side, t, data.qpos[hand.tx_qpos], hand.tx_path[t + 1, 0]))
+        for hand, arrays in zip(self.stages.hands, self.stages.plan.hands, strict=True):
+            self.trace.append((hand.side, t, data.qpos[hand.tx_qpos], arrays.tx_path[t + 1, 0]))
         return super().act(observation)
 
 

@@ -8,6 +8,12 @@ import pytest
 
 from pianist.control import make_controller
 from pianist.control.planner import ENV_OPTIONS, FingerState, IKPlanner, PlannerConfig
+from pianist.control.planner.forearm import plan_commands
+from pianist.control.planner.hand_plan import HandPlan
+from pianist.control.planner.ik import finger_controls, solve_fingers
+from pianist.control.planner.plans import Plan
+from pianist.control.planner.postures import set_wrist
+from pianist.control.planner.targets import fingertip_targets
 from pianist.env import PianoEnv
 from pianist.env.piano_env import action_to_ctrl
 from pianist.eval import run_episode
@@ -15,6 +21,36 @@ from pianist.eval.session import make_env
 from pianist.music import Note, Song, load_song
 from pianist.music.transforms import window
 from pianist.sim.constants import BLACK_KEY_MASK, FINGERTIP_CAPSULE_RADIUS_M
+
+
+def _targets(planner, now, hover_end, hand=0):
+    """Hand ``hand``'s fingertip targets and active fingers at step ``now`` as the planner's
+    step makes them (in the pose it holds then); the planner's memory of its fingers is
+    updated as a step updates it."""
+    arrays = planner.plan.hands[hand]
+    pose = planner.poses[hand][int(arrays.pose_held[now])]
+    targets, active, memory = fingertip_targets(
+        planner, planner.hands[hand], arrays, pose, planner.memories[hand], now, hover_end
+    )
+    planner.memories[hand] = memory
+    return targets, active
+
+
+def _solve(planner, targets, active, cfg=None, hand=0, pose=0, bent_up=0.0):
+    """Hand ``hand``'s finger angles (5, D) for ``targets`` in pose ``pose`` (set in the
+    planner's scratch state), with the planner's memory of its fingers."""
+    return solve_fingers(
+        planner.model,
+        planner.scratch,
+        planner.hands[hand],
+        planner.poses[hand][pose].batch,
+        targets,
+        active,
+        planner.memories[hand],
+        bent_up,
+        pose > 0,
+        cfg or planner.config,
+    )
 
 
 def _play(song, physics="fast"):
@@ -154,9 +190,9 @@ def test_the_forearm_reaches_the_first_note_from_home_within_a_few_frames():
     # Twinkle's first note is due at once, 12 cm from the right hand's home position; the
     # servo on its own would still be ~4 cm short after four frames.
     _, planner, qpos = _step_planner("twinkle-twinkle", 4)
-    hand = planner.hands[0]
-    assert abs(hand.tx_plan[0]) > 0.08
-    assert abs(qpos[-1, hand.tx_qpos] - hand.tx_plan[3]) < 0.005
+    hand, arrays = planner.hands[0], planner.plan.hands[0]
+    assert abs(arrays.tx_plan[0]) > 0.08
+    assert abs(qpos[-1, hand.tx_qpos] - arrays.tx_plan[3]) < 0.005
 
 
 def test_a_chord_does_not_lift_the_hand():
@@ -176,8 +212,8 @@ def test_a_wide_chord_keeps_every_finger_within_its_reach():
     planner = IKPlanner(PlannerConfig(reach_margin=0.0, hand_planning="frame"))
     planner.reset(env)
     goal = env.goal
-    for hand in planner.hands:
-        for t in np.flatnonzero(hand.busy):
+    for hand, arrays, poses in zip(planner.hands, planner.plan.hands, planner.poses, strict=True):
+        for t in np.flatnonzero(arrays.busy):
             keys = np.flatnonzero(goal.keys[t])
             fingers = goal.fingers[t, keys]
             if len(set(fingers)) < len(fingers):
@@ -186,8 +222,8 @@ def test_a_wide_chord_keeps_every_finger_within_its_reach():
                 finger = goal.fingers[t, key] - hand.finger_offset
                 if not 0 <= finger < 5:
                     continue
-                low, high = hand.reach[finger, int(BLACK_KEY_MASK[key])]
-                offset = planner.key_point[key, 1] - hand.tx_plan[t]
+                low, high = poses[0].reach[finger, int(BLACK_KEY_MASK[key])]
+                offset = planner.key_point[key, 1] - arrays.tx_plan[t]
                 assert low - 1e-9 <= offset <= high + 1e-9, (hand.side, t, key, finger)
 
 
@@ -228,9 +264,17 @@ def test_a_thumb_that_cannot_line_up_at_hover_height_presses_from_where_it_stand
     planner = IKPlanner(PlannerConfig(hand_planning="frame"))
     observation, _ = env.reset(seed=0)
     planner.reset(env)
-    hand = planner.hands[0]
-    hand.tx_plan = hand.tx_plan + 0.01
-    hand.plan_commands(env.model, planner.dt, planner.config, multi_step=False)
+    hand, arrays = planner.hands[0], planner.plan.hands[0]
+    course = HandPlan(
+        arrays.tx_plan + 0.01,
+        arrays.busy,
+        np.full_like(arrays.skip, -1, dtype=int),
+        arrays.skip,
+        0.0,
+        arrays.pose_plan,
+    )
+    moved = plan_commands(hand, course, planner.dt, planner.config, multi_step=False)
+    planner.plan = Plan(planner.plan.kind, planner.plan.fingers, (moved,))
     key = 60 - 21
     down = []
     for _ in range(31):
@@ -270,15 +314,15 @@ def test_the_hand_stays_put_while_the_fingers_reach():
     for lazy in (0.0, 0.02):
         planner = IKPlanner(PlannerConfig(lazy_m=lazy))
         planner.reset(env)
-        hand = planner.hands[0]
-        moves[lazy] = int(np.count_nonzero(np.abs(np.diff(hand.tx_plan)) > 1e-9))
-        for t in np.flatnonzero(hand.busy):
+        arrays, home = planner.plan.hands[0], planner.poses[0][0]
+        moves[lazy] = int(np.count_nonzero(np.abs(np.diff(arrays.tx_plan)) > 1e-9))
+        for t in np.flatnonzero(arrays.busy):
             keys = np.flatnonzero(env.goal.keys[t])
-            reach = hand.reach[env.goal.fingers[t, keys], BLACK_KEY_MASK[keys].astype(int)]
+            reach = home.reach[env.goal.fingers[t, keys], BLACK_KEY_MASK[keys].astype(int)]
             y = planner.key_point[keys, 1]
             low, high = np.max(y - reach[:, 1]), np.min(y - reach[:, 0])
             if low <= high:  # (where the thumb passes under, no position reaches both keys)
-                assert low - 1e-9 <= hand.tx_plan[t] <= high + 1e-9, (lazy, t, keys)
+                assert low - 1e-9 <= arrays.tx_plan[t] <= high + 1e-9, (lazy, t, keys)
     # Measured 28 position changes re-centring on every note, 6 staying put.
     assert moves[0.02] < moves[0.0] / 2, moves
 
@@ -295,10 +339,10 @@ def test_no_finger_strains_for_a_key_beyond_the_next_shift():
         planner.reset(env, seed=0)
         for _ in range(25):
             observation, *_ = env.step(planner.act(observation))
-        hand = planner.hands[0]
-        assert hand.free[29] and not hand.free[25:29].any()
+        free = planner.plan.hands[0].free
+        assert free[29] and not free[25:29].any()
         assert env.goal.fingers[30, 65 - 21] == 0  # F4, thumb
-        _, active = hand.fingertip_targets(planner, 25, 32)
+        _, active = _targets(planner, 25, 32)
         hovering[stop] = bool(active[0])
     assert hovering == {True: False, False: True}
 
@@ -309,10 +353,10 @@ def test_a_finger_changing_keys_in_a_chord_change_skims_low():
     # planned frame by frame).
     env, planner, _ = _step_planner("c-major-chords", 21, config=FRAME)
     hand = planner.hands[0]
-    assert hand.last_key[2] == 64 - 21  # it pressed E4 last
-    targets, active = hand.fingertip_targets(planner, 21, 27)
+    assert planner.memories[0].last_key[2] == 64 - 21  # it pressed E4 last
+    targets, active = _targets(planner, 21, 27)
     key = 65 - 21
-    assert active[2] and not hand.pressing[2]
+    assert active[2] and not planner.memories[0].pressing[2]
     top = planner.key_top_z[key] + FINGERTIP_CAPSULE_RADIUS_M
     height = targets[2, 2] + planner.scratch.xpos[hand.forearm_body][2] - top
     assert height == pytest.approx(planner.config.transfer_height_m, abs=1e-9)
@@ -334,7 +378,7 @@ def test_a_chord_wider_than_the_hand_keeps_its_outer_voice(low, high, fingers, k
     dropped = ({low, high} - {kept}).pop()
     assert np.flatnonzero(down.any(axis=0)).tolist() == [kept - 21]
     assert down[:, kept - 21].sum() >= 18  # of its 21 frames
-    assert any(hand.skip[:, dropped - 21].any() for hand in planner.hands)
+    assert any(arrays.skip[:, dropped - 21].any() for arrays in planner.plan.hands)
 
 
 @pytest.mark.parametrize(("low", "high", "fingers"), [(36, 48, (9, 5)), (60, 72, (0, 4))])
@@ -364,11 +408,10 @@ def test_only_a_white_key_is_let_go_by_a_finger_too_far_back_along_it(key, finge
     # and C#5 fell silent for two frames where a finger slid back on it).
     frame = 65 if presses else 75
     env, planner, _ = _step_planner("d-major-scale-right", frame)
-    hand = planner.hands[0]
-    assert env.goal.fingers[frame, key] == finger and hand.pressing[finger]
+    assert env.goal.fingers[frame, key] == finger and planner.memories[0].pressing[finger]
     planner.key_point[key, 0] += 0.03
-    hand.fingertip_targets(planner, frame, frame + 5)
-    assert hand.pressing[finger] == presses
+    _targets(planner, frame, frame + 5)
+    assert planner.memories[0].pressing[finger] == presses
 
 
 @pytest.mark.parametrize(("back_m", "presses"), [(0.005, True), (0.03, False)])
@@ -379,11 +422,10 @@ def test_a_finger_in_front_of_a_black_key_does_not_press_it(back_m, presses):
     # stood on the white key for whole notes): it hovers on. Moved 5 mm, it still presses.
     key, finger, frame = 73 - 21, 3, 65
     env, planner, _ = _step_planner("d-major-scale-right", frame)
-    hand = planner.hands[0]
-    assert hand.pressing[finger]
+    assert planner.memories[0].pressing[finger]
     planner.key_point[key, 0] -= back_m
-    hand.fingertip_targets(planner, frame, frame + 5)
-    assert hand.pressing[finger] == presses
+    _targets(planner, frame, frame + 5)
+    assert planner.memories[0].pressing[finger] == presses
 
 
 def test_every_black_key_of_the_d_major_scale_sounds_on_time():
@@ -408,7 +450,7 @@ def test_a_shift_holds_the_keys_before_it_as_long_as_it_can():
     for lead in (0, 1):
         planner = IKPlanner(PlannerConfig(shift_lead_frames=lead))
         down = np.asarray(run_episode(env, planner, seed=0).active_keys)
-        assert list(np.flatnonzero(planner.hands[0].free[:60])) == [29 - lead, 30 - lead]
+        assert list(np.flatnonzero(planner.plan.hands[0].free[:60])) == [29 - lead, 30 - lead]
         held[lead] = bool(down[28, 66 - 21])
     assert held == {0: True, 1: False}
     with pytest.raises(ValueError, match="shift_lead_frames"):
@@ -428,7 +470,7 @@ def test_a_rest_between_two_notes_keeps_the_hand_over_its_keys():
     env = PianoEnv(Song(tuple(notes), name="rests"), physics="fast", **ENV_OPTIONS)
     planner = IKPlanner()
     episode = run_episode(env, planner, seed=0)
-    right = next(hand for hand in planner.hands if hand.side == "right")
+    right = planner.plan.hands[[hand.side for hand in planner.hands].index("right")]
     due = env.goal.keys[:, [67 - 21, 71 - 21]]
     frames = np.flatnonzero(due.any(axis=1))
     assert len(np.unique(right.tx_plan[frames[0] : frames[-1] + 1])) == 1
@@ -458,8 +500,8 @@ def test_a_shift_leaves_later_when_the_keys_it_holds_outweigh_the_notes_it_moves
         env = PianoEnv(song, physics="fast", **ENV_OPTIONS)
         planner = IKPlanner(PlannerConfig(shift_delay_max_frames=delay))
         episode = run_episode(env, planner, seed=0)
-        right = planner.hands[0]
-        assert planner.plan_kind[0] == "piece" and right.side == "right"
+        right = planner.plan.hands[0]
+        assert planner.plan_kind[0] == "piece" and planner.hands[0].side == "right"
         down = np.asarray(episode.active_keys)
         held[delay] = int(down[:, 64 - 21].sum() + down[:, 67 - 21].sum())
         free[delay] = np.flatnonzero(right.free)
@@ -513,7 +555,7 @@ def test_a_new_episode_reuses_the_plan_exactly():
     first, again = IKPlanner(), IKPlanner()
     actions = run_episode(env, first, seed=0).actions
     assert np.array_equal(run_episode(env, again, seed=0).actions, actions)
-    for a, b in zip(first.hands, again.hands, strict=True):
+    for a, b in zip(first.plan.hands, again.plan.hands, strict=True):
         assert a.tx_path is b.tx_path  # made once, for the first episode
 
 
@@ -523,20 +565,20 @@ def test_a_finger_whose_key_does_not_sound_is_pushed_harder():
     env, planner, _ = _step_planner("c-major-scale-right", 50)
     hand = planner.hands[0]
     finger = 2
-    assert hand.pressing[finger]
+    assert planner.memories[0].pressing[finger]
     # The count: a key that does not go down while its finger keeps pressing it.
     planner.key_threshold = planner.key_threshold + 1.0  # no key counts as sounding
-    hand.fingertip_targets(planner, 50, 55)
-    assert hand.unsounded[finger] == 1
-    hand.fingertip_targets(planner, 50, 55)
-    assert hand.unsounded[finger] == 2
+    _targets(planner, 50, 55)
+    assert planner.memories[0].unsounded[finger] == 1
+    _targets(planner, 50, 55)
+    assert planner.memories[0].unsounded[finger] == 2
     heights = {}
-    targets, active = hand.fingertip_targets(planner, 50, 55)
+    targets, active = _targets(planner, 50, 55)
     for count in (0, 2):
-        hand.unsounded[finger] = count
-        hand.solve(env.model, planner.scratch, targets, active, planner.config)
+        planner.memories[0].unsounded[finger] = count
+        angles = _solve(planner, targets, active)
         # Where the commanded angles (the servo targets) put the fingertip.
-        hand.fingers[finger].set(planner.scratch, hand.fingers[finger].angles)
+        hand.fingers[finger].set(planner.scratch, angles[finger, : hand.fingers[finger].dof])
         mujoco.mj_kinematics(env.model, planner.scratch)
         heights[count] = planner.scratch.site_xpos[hand.sites[finger], 2]
     assert heights[2] < heights[0] - 0.003, heights  # 4.6 mm lower
@@ -591,7 +633,7 @@ def test_fingers_travel_during_a_jump():
     env = PianoEnv(Song(notes, name="jump"), physics="fast", **ENV_OPTIONS)
     run_episode(env, planner, seed=0)
     states = planner.plan_arrays()["finger_states"][:, :5]
-    right = next(hand for hand in planner.hands if hand.side == "right")
+    right = planner.plan.hands[[hand.side for hand in planner.hands].index("right")]
     shifting = np.flatnonzero(right.free)
     assert shifting.size > 0
     assert np.all(states[shifting] != FingerState.PRESSING)
@@ -607,11 +649,13 @@ def test_the_joint_plan_of_both_hands_plays_with_its_own_split():
     assert planner.plan_kind[:2] == ("split", True)
     assert episode.metrics()["f1"] >= 0.75
     goal = env.unwrapped.goal
-    due = goal.keys & ~np.any([hand.skip for hand in planner.hands], axis=0)
+    due = goal.keys & ~np.any([arrays.skip for arrays in planner.plan.hands], axis=0)
     assert np.all(planner.fingers[due] >= 0)
-    # No key is pressed by the plan of both hands at once.
-    right, left = sorted(planner.hands, key=lambda h: h.side != "right")
-    assert not np.any((right.key_fingers >= 0) & (left.key_fingers >= 0))
+    # A hand's plan leaves out none of the keys it gives its own fingers.
+    for hand, arrays in zip(planner.hands, planner.plan.hands, strict=True):
+        local = planner.fingers - hand.finger_offset
+        mine = goal.keys & (local >= 0) & (local < 5)
+        assert mine.any() and not np.any(mine & arrays.skip), hand.side
 
 
 def test_a_thumb_pressing_past_its_reach_gives_up_depth_not_lining_up():
@@ -634,7 +678,7 @@ def test_a_thumb_pressing_past_its_reach_gives_up_depth_not_lining_up():
             mujoco.mj_kinematics(m, scratch)
             targets = np.zeros((5, 3))
             targets[0] = target - scratch.xpos[hand.forearm_body]
-            hand.solve(m, scratch, targets, np.array([True, False, False, False, False]), config)
+            _solve(planner, targets, np.array([True, False, False, False, False]), config)
             mujoco.mj_kinematics(m, scratch)
             errors[weight, depth] = abs(scratch.site_xpos[hand.fingers[0].site, 1] - target[1])
     for depth in (0.02, 0.03):
@@ -675,13 +719,12 @@ def test_a_finger_holding_its_key_down_keeps_pressing_though_its_tip_slid(keep_s
     # off it, but its key sounds: it keeps pressing instead of coming up to line up again.
     key, finger, frame = 73 - 21, 3, 65
     env, planner, _ = _step_planner("d-major-scale-right", frame)
-    hand = planner.hands[0]
-    assert hand.pressing[finger]
+    assert planner.memories[0].pressing[finger]
     assert env.data.qpos[planner.key_qpos[key]] >= planner.key_threshold[key]
     planner.config = dataclasses.replace(planner.config, keep_sounding=keep_sounding)
     planner.key_point[key, 1] += 0.02
-    hand.fingertip_targets(planner, frame, frame + 5)
-    assert hand.pressing[finger] == keep_sounding
+    _targets(planner, frame, frame + 5)
+    assert planner.memories[0].pressing[finger] == keep_sounding
 
 
 @pytest.mark.parametrize(
@@ -701,16 +744,15 @@ def test_a_pressing_finger_pushes_harder_when_the_keys_bend_the_wrist_up(
         planner.config, bent_wrist_push=home_push, reach_bent_wrist_push=reach_push
     )
     hand, m, scratch = planner.hands[0], planner.model, planner.scratch
-    targets, active = hand.fingertip_targets(planner, frame, frame + 5)
-    assert hand.pressing[finger]
-    hand.use_pose(pose)
+    targets, active = _targets(planner, frame, frame + 5)
+    assert planner.memories[0].pressing[finger]
+    wrist, ty = planner.poses[0][pose].wrist, planner.poses[0][pose].ty
     tips = {}
     for bent in (0.0, 0.15):
         scratch.qpos[:] = env.data.qpos
-        hand.set_wrist(scratch, None, planner.config)
-        hand.wrist_bent_up = bent
-        hand.solve(m, scratch, targets, active, planner.config)
-        hand.fingers[finger].set(scratch, hand.fingers[finger].angles)
+        set_wrist(scratch, None, hand, wrist, ty, planner.config)
+        angles = _solve(planner, targets, active, pose=pose, bent_up=bent)
+        hand.fingers[finger].set(scratch, angles[finger, : hand.fingers[finger].dof])
         mujoco.mj_kinematics(m, scratch)
         tips[bent] = scratch.site_xpos[hand.sites[finger]].copy()
     if pushed:
@@ -741,15 +783,16 @@ def test_a_re_strike_is_pushed_down_again_from_its_first_step():
     assert on_time[0] >= on_time[1] + 2 and f1[0] > f1[1]
 
 
-def _reference_ik(hand, m, scratch, targets, active, cfg):
-    """The IK solved one finger at a time, as ``FingerIK`` documents it (no push)."""
+def _reference_ik(hand, pose, m, scratch, targets, active, cfg):
+    """The IK solved one finger at a time, as ``ik.py`` documents it (no push)."""
     angles = {}
     for f, finger in enumerate(hand.fingers):
         if active[f]:
-            tips = finger.sample_tips - targets[f]
-            angles[f] = finger.samples[np.argmin((tips**2).sum(axis=1))].copy()
+            samples, sample_tips, _ = pose.samples[f]
+            tips = sample_tips - targets[f]
+            angles[f] = samples[np.argmin((tips**2).sum(axis=1))].copy()
         else:
-            angles[f] = finger.lift.copy()
+            angles[f] = pose.lift[f].copy()
         finger.set(scratch, angles[f])
     jacp = np.zeros((3, m.nv))
     for _ in range(cfg.iterations):
@@ -782,20 +825,20 @@ def test_the_fingers_solved_together_match_each_finger_solved_alone():
     planner.reset(env, seed=0)
     m, scratch, cfg = env.model, planner.scratch, planner.config
     rng = np.random.default_rng(3)
-    for hand in planner.hands:
-        hand.pressing[:] = False  # the push after the solve is checked elsewhere
+    for h, hand in enumerate(planner.hands):
+        planner.memories[h].pressing[:] = False  # the push after the solve is checked elsewhere
+        home = planner.poses[h][0]
         assert len({finger.dof for finger in hand.fingers}) > 1  # padding is exercised
         for trial in range(6):
             active = rng.random(5) < 0.6
             active[trial % 5] = True
             # Targets around the fingers' resting places, some beyond their reach.
-            targets = hand.rest_tips + rng.normal(0.0, 0.015, (5, 3))
+            targets = home.rest_tips + rng.normal(0.0, 0.015, (5, 3))
             start = env.data.qpos.copy()
             scratch.qpos[:] = start
-            hand.solve(m, scratch, targets, active, cfg)
-            batched = hand.finger_controls(scratch)
+            batched = finger_controls(hand, _solve(planner, targets, active, hand=h))
             solved_qpos = scratch.qpos.copy()
             scratch.qpos[:] = start
-            reference = _reference_ik(hand, m, scratch, targets, active, cfg)
+            reference = _reference_ik(hand, home, m, scratch, targets, active, cfg)
             np.testing.assert_allclose(batched, reference, atol=1e-9)
             np.testing.assert_allclose(solved_qpos, scratch.qpos, atol=1e-9)

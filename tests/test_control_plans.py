@@ -58,8 +58,8 @@ def test_the_cache_keeps_the_latest_plans():
 def test_plans_made_twice_are_the_same_plan():
     a = _reset(IKPlanner(PlannerConfig(hand_planning="piece"), cache=PlanCache()))
     b = _reset(IKPlanner(PlannerConfig(hand_planning="piece"), cache=PlanCache()))
-    plan_a, plan_b = a._snapshot(a.plan_kind), b._snapshot(b.plan_kind)
-    assert plan_a.hands[0].tx_servo is not plan_b.hands[0].tx_servo  # made anew each time
+    plan_a, plan_b = a.plan, b.plan
+    assert plan_a.hands[0].tx_path is not plan_b.hands[0].tx_path  # made anew each time
     assert plan_a.same_as(plan_b)
     other_fingers = plan_b.fingers.copy()
     other_fingers[0, 0] += 1  # one finger changed

@@ -45,8 +45,8 @@ def _white_span(reach: np.ndarray, side: str) -> float:
 
 def test_the_reach_model_finds_the_octave():
     _, planner = _reset(_block((60, 72), (0, 4)))
-    for hand in planner.hands:
-        straight, turned = (pose.full_reach for pose in hand.poses)
+    for hand, poses in zip(planner.hands, planner.poses, strict=True):
+        straight, turned = (pose.full_reach for pose in poses)
         assert _white_span(straight, hand.side) < OCTAVE_M  # the wrist straight: ~0.13 m
         assert _white_span(turned, hand.side) > OCTAVE_M + 0.005  # turned and flexed: ~0.17 m
     # The whole hand's ceiling (every pose of WHOLE_HAND_POSES) plays the octaves; the
@@ -80,20 +80,20 @@ def test_the_ceiling_takes_each_hands_best_pose():
 def test_the_plan_turns_the_wrist_for_a_block_octave_only():
     _, planner = _reset(_block((60, 72), (0, 4)))
     due = planner.goal.keys.any(axis=1)
-    for hand in planner.hands:
-        assert (hand.pose_plan[due] == 1).all(), hand.side
+    for hand, arrays in zip(planner.hands, planner.plan.hands, strict=True):
+        assert (arrays.pose_plan[due] == 1).all(), hand.side
         # The hand turns once, before the chord, and plays both keys with its own fingers.
-        assert not hand.skip.any()
+        assert not arrays.skip.any()
     # A five-finger melody: the wrist stays straight.
     melody = [
         Note(p, 0.5 + 0.3 * i, 0.78 + 0.3 * i, finger=i % 5)
         for i, p in enumerate((60, 62, 64, 65, 67, 65, 64, 62, 60))
     ]
     _, planner = _reset(Song(tuple(melody), name="five"))
-    assert all((hand.pose_plan == 0).all() for hand in planner.hands)
+    assert all((arrays.pose_plan == 0).all() for arrays in planner.plan.hands)
     # Without reach poses, the straight plan gives the octave's other key to the other hand.
     _, straight = _reset(_block((60, 72), (0, 4)), PlannerConfig(reach_poses=()))
-    assert all((hand.pose_plan == 0).all() for hand in straight.hands)
+    assert all((arrays.pose_plan == 0).all() for arrays in straight.plan.hands)
 
 
 def test_plans_are_deterministic():
@@ -191,13 +191,14 @@ def test_a_turned_hand_moves_a_key_at_a_time_with_its_fingers_on_the_keys(reach_
     costs = HandPlanCosts(objective="step_f1", **weights)
     config = PlannerConfig(hand_planning="piece", hand_plan=costs)
     _, planner = _reset(get_song("block-octaves"), config)
-    for hand in planner.hands:
-        turned = hand.pose_plan > 0
+    for hand, arrays in zip(planner.hands, planner.plan.hands, strict=True):
+        turned = arrays.pose_plan > 0
         assert turned[planner.goal.keys.any(axis=1)].all()
-        moves = np.flatnonzero(np.abs(np.diff(hand.tx_plan)) > 0.01) + 1
-        key_moves = [k for k in moves if 0.015 < abs(hand.tx_plan[k] - hand.tx_plan[k - 1]) < 0.03]
+        tx = arrays.tx_plan
+        moves = np.flatnonzero(np.abs(np.diff(tx)) > 0.01) + 1
+        key_moves = [k for k in moves if 0.015 < abs(tx[k] - tx[k - 1]) < 0.03]
         assert len(key_moves) >= 5, hand.side
-        lifted = [k for k in key_moves if hand.free[max(k - 3, 0) : k].any()]
+        lifted = [k for k in key_moves if arrays.free[max(k - 3, 0) : k].any()]
         if reach_shift is None:
             assert lifted == key_moves
         else:
@@ -266,8 +267,8 @@ def test_each_hand_sounds_c_e_g_c_with_the_wrist_flexed_further(physics):
         share = down[:, key - 21][due[:, key - 21]].mean()
         # Measured: 0.88-1.0 fast, 0.95-1.0 faithful.
         assert share >= 0.85, (key, share)
-    for hand in planner.hands:
-        assert (hand.pose_plan[due.any(axis=1)] == 2).all(), hand.side
+    for hand, arrays in zip(planner.hands, planner.plan.hands, strict=True):
+        assert (arrays.pose_plan[due.any(axis=1)] == 2).all(), hand.side
     # Measured: 0.885 fast (the left thumb holds B2 down beside C3), 0.940 faithful.
     assert per_step_precision_recall_f1(down, due)[2].mean() >= 0.85
 

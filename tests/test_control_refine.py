@@ -50,8 +50,7 @@ def test_looking_ahead_leaves_the_episode_and_the_planner_as_they_were():
         # The refiner's planner remembers what the twin does after proposing, and the refined
         # action differs from the proposal in the fingers only.
         for mine, theirs in zip(refiner.planner.memory(), twin.memory(), strict=True):
-            for name in mine:
-                np.testing.assert_array_equal(mine[name], theirs[name])
+            assert mine.equals(theirs)
         others = np.setdiff1d(np.arange(action.size), refiner.dims)
         np.testing.assert_allclose(action[others], proposal[others], atol=1e-6)
         obs, *_ = env.step(action)
@@ -184,7 +183,7 @@ def test_keys_the_plan_leaves_out_do_not_count_in_the_look_ahead():
         env.reset(seed=0)
         refiner.reset(env, seed=0)
         goal = refiner.handle.goal.keys
-        left_out = np.any([hand.skip for hand in refiner.planner.hands], axis=0)
+        left_out = np.any([arrays.skip for arrays in refiner.planner.plan.hands], axis=0)
         assert left_out.any() and not (refiner.planned & left_out).any()
         assert refiner.planned.sum() == goal.sum() - left_out.sum()
         if count_left_out:

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import gymnasium as gym
 import mujoco
@@ -23,6 +23,9 @@ from pianist.env import PianoEnv
 from pianist.env.handle import control_handle
 from pianist.env.piano_env import EnvState
 from pianist.music import GoalFrames, Song, load_song
+
+if TYPE_CHECKING:
+    from pianist.control.planner.hand import FingerMemory
 
 TARGET_SCALE = 10.0  # m -> dm: fingertip-to-key vectors of a few cm become ~0.1-1
 HAND_FINGERS = {"right": range(0, 5), "left": range(5, 10)}
@@ -193,11 +196,11 @@ class Featurizer:
         self._planner: Any = None
         self._base = np.zeros(self.action_dim, np.float32)
 
-    def memory(self) -> list[dict[str, np.ndarray]] | None:
+    def memory(self) -> list[FingerMemory] | None:
         """A copy of what the residual's planner remembers between steps (None: no planner)."""
         return None if self._planner is None else self._planner.memory()
 
-    def set_memory(self, memory: list[dict[str, np.ndarray]] | None) -> None:
+    def set_memory(self, memory: list[FingerMemory] | None) -> None:
         """Give the planner a :meth:`memory` copy, after :meth:`reset`, to go on from a
         snapshot of the environment taken with it."""
         if memory is not None:

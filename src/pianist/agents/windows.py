@@ -28,12 +28,15 @@ observations and rewards exactly (tests/test_agents_windows.py).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from pianist.agents.envs import AgentEnv, AgentEnvState, Featurizer
 from pianist.eval.metrics import per_step_precision_recall_f1
+
+if TYPE_CHECKING:
+    from pianist.control.planner.hand import FingerMemory
 
 #: Added to every error before the power: a window played perfectly is still drawn.
 ERROR_FLOOR = 0.01
@@ -48,7 +51,7 @@ class WindowStart:
 
     step: int
     state: AgentEnvState
-    planner_memory: list[dict[str, np.ndarray]] | None
+    planner_memory: list[FingerMemory] | None
 
 
 def window_starts(num_steps: int, window_steps: int, stride_steps: int) -> list[int]:

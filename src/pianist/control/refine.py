@@ -56,6 +56,7 @@ from pianist.sim import constants as C
 
 if TYPE_CHECKING:
     from pianist.control.planner import IKPlanner
+    from pianist.control.planner.hand import FingerMemory
     from pianist.control.rollout_ahead import RolloutAhead
     from pianist.env.piano_env import EnvState
     from pianist.music import Song
@@ -76,7 +77,7 @@ class _Trace:
     """qpos, qvel, act and ctrl after each step."""
     end: EnvState | None = None
     """The fork's state after the last step, and the planner's memory then."""
-    memory: list[dict[str, np.ndarray]] | None = None
+    memory: list[FingerMemory] | None = None
 
     def total(self) -> tuple[float, np.ndarray]:
         """The look-ahead's cost, and (10,) each finger's part of it."""
@@ -123,9 +124,9 @@ class Refiner(BaseController):
         # look-ahead that misses only them ends the search as a perfect one does.
         goal = self.handle.goal
         self.planned = np.zeros_like(goal.keys)
-        for hand in hands:
+        for hand, arrays in zip(hands, self.planner.plan.hands, strict=True):
             local = self.planner.fingers - hand.finger_offset
-            self.planned |= goal.keys & ~hand.skip & (local >= 0) & (local < len(hand.fingers))
+            self.planned |= goal.keys & ~arrays.skip & (local >= 0) & (local < len(hand.fingers))
         self._steps = self._refined = 0
         self._previous: np.ndarray | None = None
         self._seconds = 0.0
@@ -251,7 +252,7 @@ class Refiner(BaseController):
         proposal: np.ndarray,
         offset: np.ndarray,
         state: EnvState,
-        memory: list[dict[str, np.ndarray]],
+        memory: list[FingerMemory],
     ) -> tuple[float, np.ndarray]:
         """Missed and wrong keys over the horizon when ``offset`` is added to the planner's
         actions, from ``state`` with the planner's ``memory``: the total, and (10,) the part
@@ -290,7 +291,7 @@ class Refiner(BaseController):
         proposal: np.ndarray,
         offsets: np.ndarray,
         state: EnvState,
-        memory: list[dict[str, np.ndarray]],
+        memory: list[FingerMemory],
     ) -> tuple[list[float], list[np.ndarray]]:
         """The perturbed candidates ``offsets`` (N, A) looked ahead open-loop, in batches of
         ``open_loop_batch`` (0: one batch), the search ending after a batch whose cheapest
@@ -325,7 +326,7 @@ class Refiner(BaseController):
         return costs, per_fingers
 
     def _unperturbed(
-        self, proposal: np.ndarray, state: EnvState, memory: list[dict[str, np.ndarray]]
+        self, proposal: np.ndarray, state: EnvState, memory: list[FingerMemory]
     ) -> tuple[float, np.ndarray]:
         """:meth:`_look_ahead` of the planner's own actions, continuing the last step's by
         one step where the episode followed it (``continue_look_ahead``), and kept."""

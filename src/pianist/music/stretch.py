@@ -15,7 +15,7 @@ spans ~0.13 m from the thumb to the little finger, turned towards the thumb and 
 - ``octave-melody``: a melody in octaves in the right hand over a walking left-hand bass.
 
 Every note is on a white key (the turned hand plays no black key,
-``ForearmPlan.plan_reaches``), and fingered as a pianist would (thumb and little finger on an
+``forearm.plan_reaches``), and fingered as a pianist would (thumb and little finger on an
 octave). Pitches are MIDI numbers; times in s.
 """
 

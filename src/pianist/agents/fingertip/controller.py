@@ -7,7 +7,7 @@ policy that reads the plan's fingering has the planner plan the piece at reset, 
 of a second, and by default its forearms follow that plan's path: :data:`Forearm`):
 
 1. the slide is steered to its target (the plan's path, or the policy's own target) through
-   its servo's exact dynamics (the planner's ``_Servo``), the height slide and the wrist held
+   its servo's exact dynamics (the planner's ``SlideServo``), the height slide and the wrist held
    as the planner holds them;
 2. each finger's fingertip target follows from its mode and its next key by the song's
    fingering: below the key's top (press), above it (hover, re-strike), or the lifted
@@ -48,7 +48,11 @@ from pianist.agents.fingertip.features import (
 )
 from pianist.control.base import BaseController
 from pianist.control.planner import ENV_OPTIONS, IKPlanner, PlannerConfig
-from pianist.control.planner.forearm import _Servo
+from pianist.control.planner.forearm import command_forearm, command_height
+from pianist.control.planner.hand import FingerMemory, Hand
+from pianist.control.planner.ik import finger_controls, solve_fingers
+from pianist.control.planner.postures import set_wrist
+from pianist.control.planner.targets import count_unsounded, mark_represses, press_point
 from pianist.files import atomic_dir
 from pianist.sim import constants as C
 
@@ -81,6 +85,7 @@ def step_features(
     for i, hand in enumerate(p.hands):
         others = [roots[j] - roots[i] for j in range(len(p.hands)) if j != i]
         origin = data.xpos[hand.forearm_body]
+        home = p.poses[i][0]  # the policy plays in the home pose (PLAN_FINGERING_CONFIG)
         lo = float(hand.tx_range[0])
         hi = float(hand.tx_range[1])
         view = HandView(
@@ -91,9 +96,9 @@ def step_features(
             tx_mid=(lo + hi) / 2,
             tx_half=(hi - lo) / 2,
             other_y=others[0] if others else None,
-            tip_offset_y=hand.tip_offset_y,
+            tip_offset_y=home.tip_offset_y,
             tips=data.site_xpos[hand.sites],
-            lift_tips=hand.lift_tips + origin,
+            lift_tips=home.lift_tips + origin,
         )
         off = hand.finger_offset
         rows.append(
@@ -251,7 +256,6 @@ class FingertipController(BaseController):
         p = self.stages
         self.fingers = read_fingering(p, self.fingering)
         self.next_keys = NextKeys.of(p.goal.keys, self.fingers)
-        self.servos = [_Servo(p.model, h.tx_actuator, h.tx_dof, p.dt) for h in p.hands]
         self.last_modes = np.zeros(2 * FINGERS, dtype=int)
         if self.expert is not None:
             self.expert.reset(env, seed)
@@ -270,32 +274,47 @@ class FingertipController(BaseController):
             self.expert.features[-1] = self.features
         ctrl = np.array(data.ctrl)
         scratch.qpos[:] = data.qpos
-        for hand, servo, o in zip(p.hands, self.servos, out, strict=True):
-            if self.forearm == "plan":
-                hand.command_forearm(ctrl, data, t, cfg)  # as the expert: the plan's path
+        bent_up = []
+        for i, (hand, o) in enumerate(zip(p.hands, out, strict=True)):
+            home, servo = p.poses[i][0], p.servos[i]
+            if self.forearm == "plan":  # as the expert: the plan's path
+                command_forearm(ctrl, data, hand, servo, p.plan.hands[i].tx_path, t)
             else:
                 sign = 1.0 if hand.side == "right" else -1.0
                 tx, vel = float(data.qpos[hand.tx_qpos]), float(data.qvel[hand.tx_dof])
                 move, speed = decode_move(o[0], MOVE_UNIT_M), decode_move(o[1], SPEED_UNIT)
                 target = np.array([tx + sign * move, sign * speed])
                 ctrl[hand.tx_actuator] = servo.command(np.array([tx, vel]), target)
-                hand.command_height(ctrl, data, cfg)
-            hand.set_wrist(scratch, ctrl, cfg)
+            command_height(ctrl, data, hand, home.raise_m, cfg)
+            bent_up.append(set_wrist(scratch, ctrl, hand, home.wrist, home.ty, cfg))
             # As the planner: aim from where the moving forearm will be a little later.
             scratch.qpos[hand.tx_qpos] += cfg.forearm_lead_s * data.qvel[hand.tx_dof]
         mujoco.mj_kinematics(m, scratch)
         key_down = data.qpos[p.key_qpos] >= p.key_threshold
-        for hand, o in zip(p.hands, out, strict=True):
+        for i, (hand, o) in enumerate(zip(p.hands, out, strict=True)):
             modes = np.argmax(o[2:].reshape(FINGERS, NUM_MODES), axis=1)
-            targets, active, pressed = self._targets(hand, t, modes)
-            hand.pressing = pressed >= 0
-            hand.count_unsounded(pressed, key_down, cfg)
-            # As the planner: a re-strike is pushed from its first step.
-            let_up = self.last_modes[hand.finger_offset : hand.finger_offset + FINGERS]
-            hand.mark_represses(let_up == Mode.RESTRIKE, cfg)
-            hand.last_key = pressed
-            hand.solve(m, scratch, targets, active, cfg)
-            ctrl[hand.finger_actuators] = hand.finger_controls(scratch)
+            targets, active, pressed = self._targets(hand, p.poses[i][0].lift_tips, t, modes)
+            memory = p.memories[i] = _pressed_memory(
+                p.memories[i],
+                pressed,
+                key_down,
+                # As the planner: a re-strike is pushed from its first step.
+                self.last_modes[hand.finger_offset : hand.finger_offset + FINGERS] == Mode.RESTRIKE,
+                cfg,
+            )
+            angles = solve_fingers(
+                m,
+                scratch,
+                hand,
+                p.poses[i][0].batch,
+                targets,
+                active,
+                memory,
+                bent_up[i],
+                False,
+                cfg,
+            )
+            ctrl[hand.finger_actuators] = finger_controls(hand, angles)
             off = hand.finger_offset
             self.last_modes[off : off + FINGERS] = np.where(active, modes, Mode.LIFT)
         action = np.empty(m.nu + 1)
@@ -309,13 +328,16 @@ class FingertipController(BaseController):
         self.features = step_features(self.stages, self.next_keys, t, self.last_modes, self.fingers)
         return self.policy.net(self.features)
 
-    def _targets(self, hand, t: int, modes: np.ndarray) -> tuple[np.ndarray, ...]:
+    def _targets(
+        self, hand: Hand, lift_tips: np.ndarray, t: int, modes: np.ndarray
+    ) -> tuple[np.ndarray, ...]:
         """(5, 3) fingertip targets relative to the forearm, (5,) bool which fingers have
-        one, (5,) int the key each presses (-1: none), from the fingers' modes."""
+        one, (5,) int the key each presses (-1: none), from the fingers' modes
+        (``lift_tips`` (5, 3) m: the lifted fingertips relative to the forearm)."""
         p, cfg, nxt = self.stages, self.stages.config, self.next_keys
         radius = C.FINGERTIP_CAPSULE_RADIUS_M
         origin = p.scratch.xpos[hand.forearm_body]
-        targets = hand.lift_tips + origin
+        targets = lift_tips + origin
         active = np.zeros(FINGERS, dtype=bool)
         pressed = np.full(FINGERS, -1)
         for f in range(FINGERS):
@@ -324,7 +346,7 @@ class FingertipController(BaseController):
             if modes[f] == Mode.LIFT or frame < 0 or frame >= t + WINDOW:
                 continue
             key = int(nxt.key[g, t])
-            point = hand._press_point(p, key, f)
+            point = press_point(p, key, f)
             top = p.key_top_z[key] + radius
             if modes[f] == Mode.PRESS:
                 extra = cfg.thumb_extra_depth_m if f == 0 else 0.0
@@ -367,10 +389,11 @@ class ExpertRecorder(IKPlanner):
         y = np.zeros((len(self.hands), OUTPUT_DIM), dtype=np.float32)
         for i, hand in enumerate(self.hands):
             sign = 1.0 if hand.side == "right" else -1.0
-            pos, vel = hand.tx_path[min(t, len(hand.tx_path) - 3) + 1]
+            path = self.plan.hands[i].tx_path
+            pos, vel = path[min(t, len(path) - 3) + 1]
             y[i, 0] = encode_move(sign * (pos - before[i]), MOVE_UNIT_M)
             y[i, 1] = encode_move(sign * vel, SPEED_UNIT)
-            modes = _modes(hand, t, self.next_keys)
+            modes = _modes(hand, self.memories[i], t, self.next_keys)
             onehot = -np.ones((FINGERS, NUM_MODES), dtype=np.float32)
             onehot[np.arange(FINGERS), modes] = 1.0
             y[i, 2:] = onehot.ravel()
@@ -381,14 +404,31 @@ class ExpertRecorder(IKPlanner):
         return action
 
 
-def _modes(hand, t: int, nxt: NextKeys) -> np.ndarray:
-    """(5,) each finger's :class:`Mode` this step as the planner played it; a finger whose
+def _pressed_memory(
+    memory: FingerMemory, pressed: np.ndarray, key_down: np.ndarray, let_up: np.ndarray, cfg
+) -> FingerMemory:
+    """The fingers' memory after a step in which they press the keys ``pressed`` (5,) int
+    (-1: none), ``key_down`` (88,) bool being down and ``let_up`` (5,) bool the fingers that
+    let their key up the step before: what the IK's pushes read."""
+    memory = memory.copy()
+    memory.pressing = pressed >= 0
+    memory.unsounded, _ = count_unsounded(
+        memory.unsounded, memory.pressing, pressed, memory.last_key, key_down, cfg
+    )
+    memory.repress = mark_represses(memory.pressing, let_up, cfg)
+    memory.last_key = pressed
+    return memory
+
+
+def _modes(hand: Hand, memory: FingerMemory, t: int, nxt: NextKeys) -> np.ndarray:
+    """(5,) each finger's :class:`Mode` this step as the planner played it (``memory``: its
+    fingers' after the step); a finger whose
     next key (by the fingering the policy reads) is not in the window counts as lifted (the
     policy's decoding could not follow it)."""
     from pianist.agents.fingertip.features import mode_of
 
     modes = np.array(
-        [mode_of(int(s), bool(a)) for s, a in zip(hand.state, hand.active, strict=True)]
+        [mode_of(int(s), bool(a)) for s, a in zip(memory.state, memory.active, strict=True)]
     )
     for f in range(FINGERS):
         g = hand.finger_offset + f

@@ -28,17 +28,18 @@ Then each control step it
    (a J1+J2 tendon counts as one joint, its angle split evenly), clipped to the joint limits;
 4. sends those angles as the position-servo controls; the pedal follows the goal.
 
-The stages, one module each (read in this order):
+The stages, one module each (read in this order), are functions of the hand's indices, its
+pose, its plan's arrays and its fingers' memory; none keeps state of its own:
 
 - :mod:`~pianist.control.planner.config`: :class:`PlannerConfig`, :data:`ENV_OPTIONS`;
-- :mod:`~pianist.control.planner.postures`: each finger's joints, the hand's poses (wrist
-  straight or turned), and per pose the sampled postures, lifted posture and reach;
+- :mod:`~pianist.control.planner.hand`: one hand's indices into the model (:class:`Hand`,
+  each finger's joints) and what its fingers remember between steps (:class:`FingerMemory`);
+- :mod:`~pianist.control.planner.postures`: the hand's poses (wrist straight or turned),
+  and per pose the sampled postures, lifted posture and reach; the wrist's command;
 - :mod:`~pianist.control.planner.forearm`: the forearm's plan along the keyboard and its
   path, steered in closed loop (step 1);
 - :mod:`~pianist.control.planner.targets`: each fingertip's target (step 2);
 - :mod:`~pianist.control.planner.ik`: each finger's inverse kinematics (step 3);
-- :mod:`~pianist.control.planner.hand`: :class:`Hand`, one hand's indices and state, with
-  the stages' methods;
 - :mod:`~pianist.control.planner.hand_plan`, :mod:`~pianist.control.planner.hand_split`,
   :mod:`~pianist.control.planner.hand_order`: the whole-piece plans (arrays in, arrays out);
 - :mod:`~pianist.control.planner.coverage`: the reach ceiling and a plan's bound;

@@ -126,8 +126,8 @@ class PlannerConfig:
     shift_delay_max_frames: int = 8
     """Frames a shift of the whole-piece plan may leave later than planned, so that the hand
     holds its keys longer and the next notes lose their first frames instead, when fewer of
-    its due key-frames fall in the moving window so (:meth:`ForearmPlan.plan_commands`).
-    0: never."""
+    its due key-frames fall in the moving window so
+    (:func:`~pianist.control.planner.forearm.plan_commands`). 0: never."""
     shift_delay_cost: float = 0.5
     """Key-frames each frame of a shift's delay is charged besides those it loses: a hand
     that arrives later presses its next notes no sooner."""

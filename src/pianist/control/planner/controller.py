@@ -1,14 +1,17 @@
 """The controller, :class:`IKPlanner`: its reset (postures, hand plans) and its step.
 
 ``reset(env)`` reads the environment through its control handle, sets the keys' press
-points and heights (see :class:`PlannerState`), builds the :class:`Hand` s, gives their
-fingers their posture samples (:mod:`postures`), and plans the hands: frame by frame, over
-the whole piece, or the best of those plans (``PlannerConfig.hand_planning``), kept in
-:attr:`IKPlanner.cache` (:mod:`plans`) for the next episode of the same song and scene.
+points and heights (see :class:`PlannerState`), reads the hands' indices (:class:`Hand`),
+makes their poses with their posture samples (:mod:`postures`), and plans the hands: frame
+by frame, over the whole piece, or the best of those plans (``PlannerConfig.hand_planning``),
+a :class:`~pianist.control.planner.plans.Plan` kept in :attr:`IKPlanner.cache` (:mod:`plans`)
+for the next episode of the same song and scene.
 
 ``act()`` returns the action, shape (nu + 1,) float32 in [-1, 1]: the forearm slides'
-commands (:mod:`forearm`), the wrist's, each finger's joint angles (:mod:`targets`, then
-:mod:`ik`), and the sustain pedal from the goal.
+commands (:mod:`forearm`), the wrist's (:mod:`postures`), each finger's joint angles
+(:mod:`targets`, then :mod:`ik`), and the sustain pedal from the goal. Each stage is a
+function of the hand, its pose, its plan's arrays and its fingers' memory
+(:class:`FingerMemory`, which the controller keeps per hand between steps).
 """
 
 from __future__ import annotations
@@ -40,14 +43,28 @@ from pianist.control.planner.coverage import (
     plan_key_classes,
     playable_mask,
 )
-from pianist.control.planner.forearm import _keep_forearms_apart
-from pianist.control.planner.hand import Hand
+from pianist.control.planner.forearm import (
+    SlideServo,
+    clearance,
+    command_forearm,
+    command_height,
+    frame_plan,
+    keep_forearms_apart,
+    piece_plan,
+    plan_commands,
+    played_counts,
+    reach_model,
+)
+from pianist.control.planner.hand import FingerMemory, Hand
 from pianist.control.planner.hand_order import uncross_hands
+from pianist.control.planner.hand_plan import HandPlan
 from pianist.control.planner.hand_split import HandReach, SplitCosts, split_hands
-from pianist.control.planner.plans import PLANS, CachedPlan, HandPlanArrays, Plan, PlanCache
-from pianist.control.planner.postures import _use_postures
+from pianist.control.planner.ik import finger_controls, solve_fingers
+from pianist.control.planner.plans import PLANS, CachedPlan, Plan, PlanCache
+from pianist.control.planner.postures import HandPose, hand_poses, set_wrist
 from pianist.control.planner.rehearsal import Replay, f1_lost, rehearse
 from pianist.control.planner.strikes import plan_strikes
+from pianist.control.planner.targets import fingertip_targets
 from pianist.control.scoring import step_f1
 from pianist.env.handle import ControlHandle, control_handle
 from pianist.sim import constants as C
@@ -59,21 +76,6 @@ if TYPE_CHECKING:
 #: rehearsed where its own rehearsal starts (the planner's step reads the plan up to
 #: ``press_lead_frames`` + ``hover_lead_s`` and a shift's window ahead: ~8 frames).
 REHEARSAL_MARGIN_FRAMES = 20
-
-#: What a hand remembers between steps (see :class:`FingerTargets`), and what its last step
-#: decided (``state``, ``active``: read by recorders of the planner's decisions).
-_MEMORY = (
-    "pressing",
-    "stuck",
-    "last_tips",
-    "last_key",
-    "unsounded",
-    "state",
-    "active",
-    "push_key",
-    "push_sound",
-    "push_depth",
-)
 
 
 class IKPlanner(BaseController):
@@ -88,6 +90,15 @@ class IKPlanner(BaseController):
 
     plan_kind: PlanKind
     """How the plan in use was made (:attr:`~pianist.control.planner.plans.Plan.kind`)."""
+    hands: list[Hand]
+    """The hands' indices, in the scene's order (set up at reset)."""
+    poses: list[tuple[HandPose, ...]]
+    """Per hand, every pose it may take, the home pose first."""
+    plan: Plan
+    """The plan being played: each hand's arrays (``plan.hands``, in the order of
+    ``hands``) and the fingering."""
+    memories: list[FingerMemory]
+    """Per hand, what its fingers remember from the last step."""
 
     def __init__(self, config: PlannerConfig | None = None, cache: PlanCache | None = None) -> None:
         self.config = config or PlannerConfig()
@@ -135,9 +146,9 @@ class IKPlanner(BaseController):
             refinger = cfg.hand_planning == "split" or (
                 cfg.refinger and cfg.hand_planning == "piece"
             )
-            self.plan_kind = PlanKind(cfg.hand_planning, refinger, cfg.hand_plan.objective)
-            self._plan(goal, self.plan_kind)
-            chosen = self._snapshot(self.plan_kind)
+            chosen = self._plan(
+                goal, PlanKind(cfg.hand_planning, refinger, cfg.hand_plan.objective)
+            )
         entry = CachedPlan(chosen, self._replay, dict(self.rehearsed), dict(self.rehearsed_from))
         self.cache.put(goal, handle.scene.options, cfg, entry)
         self._play_tape()
@@ -189,10 +200,14 @@ class IKPlanner(BaseController):
             np.where(C.BLACK_KEY_MASK, C.BLACK_KEY_MAX_ANGLE_RAD, C.WHITE_KEY_MAX_ANGLE_RAD)
             - C.KEY_ACTIVATION_THRESHOLD_RAD
         )
-        self.hands = [Hand(m, hand, cfg.full_hand) for hand in handle.scene.hands]
+        self.hands = [Hand.build(m, hand, cfg.full_hand) for hand in handle.scene.hands]
+        self.servos = [SlideServo.of(m, hand, self.dt) for hand in self.hands]
+        self.memories = [FingerMemory() for _ in self.hands]
+        self.hand_settings: list[PlannerConfig | None] = [None for _ in self.hands]
         # (T, 10) each finger's FingerState per step, as played (see plan_arrays).
         self.finger_states = np.zeros((goal.num_frames, 2 * FINGERS_PER_HAND), dtype=np.int8)
-        _use_postures(m, self.scratch, self.hands, cfg, handle.scene.options)
+        self.poses = hand_poses(m, self.scratch, self.hands, cfg, handle.scene.options)
+        self.fingers = goal.fingers
 
     def _choose_plan(self, goal, seed: int | None) -> Plan:
         """Make each plan of ``best_candidates`` and choose one (``choose_plan``): by
@@ -202,10 +217,10 @@ class IKPlanner(BaseController):
         cfg = self.config
         plans = []
         for name in cfg.best_candidates:
-            kind = PLAN_CANDIDATES[name]
-            playable = self._plan(goal, kind)
-            promise = step_f1(playable_mask(self), goal.keys)  # (T,) the plan's step F1
-            plans.append((name, playable, promise, self._snapshot(kind)))
+            plan = self._plan(goal, PLAN_CANDIDATES[name])
+            playable = playable_mask(self)
+            promise = step_f1(playable, goal.keys)  # (T,) the plan's step F1
+            plans.append((name, int(playable.sum()), promise, plan))
         if cfg.choose_plan == "rehearsal" and len(plans) > 1:
             candidates = [(name, promise, plan) for name, _, promise, plan in plans]
             chosen = self._rehearse_plans(candidates, seed)
@@ -276,15 +291,9 @@ class IKPlanner(BaseController):
         self._replay = best[2]
         return best[1]
 
-    def _snapshot(self, kind: PlanKind) -> Plan:
-        """The plan just made (its arrays are rebound, never changed, by later plans)."""
-        return Plan(kind, self.fingers, tuple(HandPlanArrays.of(hand) for hand in self.hands))
-
     def _restore(self, plan: Plan) -> None:
-        """Play ``plan`` from now on (each hand's arrays bound to it)."""
-        self.plan_kind, self.fingers = plan.kind, plan.fingers
-        for hand, arrays in zip(self.hands, plan.hands, strict=True):
-            arrays.bind(hand)
+        """Play ``plan`` from now on."""
+        self.plan, self.plan_kind, self.fingers = plan, plan.kind, plan.fingers
 
     def stats(self) -> dict[str, float]:
         """What the plan leaves out or lifts for a shift, as shares of the due key-frames, the
@@ -315,11 +324,12 @@ class IKPlanner(BaseController):
             cfg = dataclasses.replace(
                 self.config, wrist_pose=(0.0, 0.0), reach_poses=WHOLE_HAND_POSES[1:]
             )
-            hands = [Hand(self.model, hand, cfg.full_hand) for hand in self.handle.scene.hands]
+            hands = [Hand.build(self.model, h, cfg.full_hand) for h in self.handle.scene.hands]
             data = mujoco.MjData(self.model)
-            _use_postures(self.model, data, hands, cfg, self.handle.scene.options)
+            poses = hand_poses(self.model, data, hands, cfg, self.handle.scene.options)
             self._whole_hand = {
-                hand.side: [hand.reach_model(k) for k in range(len(hand.poses))] for hand in hands
+                hand.side: [reach_model(hand, mine, k) for k in range(len(mine))]
+                for hand, mine in zip(hands, poses, strict=True)
             }
         return self._whole_hand
 
@@ -344,11 +354,12 @@ class IKPlanner(BaseController):
         key_y = self.key_point[:, 1]
         order = np.argsort(key_y)
         spans = []
-        hands = sorted(self.hands, key=lambda h: h.side != "right")
-        for hand in hands:
-            full = np.stack([pose.full_reach for pose in hand.poses])[hand.pose_plan]
-            low = hand.tx_plan + full[..., 0].min(axis=(1, 2))
-            high = hand.tx_plan + full[..., 1].max(axis=(1, 2))
+        order_of_hands = sorted(range(len(self.hands)), key=lambda i: self.hands[i].side != "right")
+        for i in order_of_hands:
+            arrays = self.plan.hands[i]
+            full = np.stack([pose.full_reach for pose in self.poses[i]])[arrays.pose_plan]
+            low = arrays.tx_plan + full[..., 0].min(axis=(1, 2))
+            high = arrays.tx_plan + full[..., 1].max(axis=(1, 2))
             span = [np.interp(y, key_y[order], order.astype(float)) for y in (low, high)]
             spans.append(np.stack(span, axis=1))
         planned = np.where(self.goal.keys, self.fingers, -1)
@@ -357,40 +368,45 @@ class IKPlanner(BaseController):
             "left_out_keys": left_out,
             "shift_keys": in_shift,
             "hand_key_span": np.stack(spans, axis=1),
-            "hand_sides": np.array([hand.side for hand in hands]),
-            "hand_pose": np.stack([hand.pose_plan for hand in hands], axis=1),
+            "hand_sides": np.array([self.hands[i].side for i in order_of_hands]),
+            "hand_pose": np.stack([self.plan.hands[i].pose_plan for i in order_of_hands], axis=1),
             "planned_fingers": planned,
             "finger_states": self.finger_states.copy(),
         }
 
-    def _plan(self, goal, how: PlanKind) -> int:
-        """Plan the hands' positions, fingers and forearm paths as ``how`` says; returns the
-        key-frames the plan leaves playable."""
+    def _plan(self, goal, how: PlanKind) -> Plan:
+        """Plan the hands' positions, poses, fingers and forearm paths as ``how`` says, and
+        play that plan from now on; returns it."""
         cfg = self.config
-        self._making = how
-        kind, refinger = how.kind, how.refinger
+        plan_cfg = self._plan_config(how)
         if cfg.uncross_hands and len(self.hands) == 2:
             goal = self._uncrossed(goal)
-        piece = kind in ("piece", "split")
-        # The finger (0-9) that presses each due key: the song's, or the plan's.
-        self.fingers = goal.fingers.copy()
-        if kind == "split" and len(self.hands) == 2:
-            self._plan_split(goal)
+        piece = how.kind in ("piece", "split")
+        if how.kind == "split" and len(self.hands) == 2:
+            fingers, courses = self._plan_split(goal, plan_cfg)
         elif piece:
-            self._plan_piece(goal, refinger)
+            fingers, courses = self._plan_piece(goal, how.refinger, plan_cfg)
         else:
-            for hand in self.hands:
-                hand.plan_forearm(goal, self.key_point, cfg.lazy_m, cfg.skip_out_of_reach)
+            fingers = goal.fingers.copy()  # the song's
+            courses = [
+                frame_plan(hand, poses[0], goal, self.key_point, cfg.lazy_m, cfg.skip_out_of_reach)
+                for hand, poses in zip(self.hands, self.poses, strict=True)
+            ]
         if len(self.hands) == 2:
-            _keep_forearms_apart(self.hands[0], self.hands[1], cfg.forearm_separation_m)
-        for hand in self.hands:
-            hand.tx_held = hand.tx_plan  # until its own commands are planned
-        for i, hand in enumerate(self.hands):
-            other = self.hands[1 - i] if len(self.hands) == 2 else None
-            hand.plan_commands(
-                self.model, self.dt, self._plan_config(), piece, hand.played_counts(self), other
-            )
-        return sum(hand.playable_keyframes(self) for hand in self.hands)
+            courses = keep_forearms_apart(self.hands, courses, cfg.forearm_separation_m)
+        # Each hand's commands, the right first: a shift's delay keeps clear of the other
+        # forearm as it follows its plan (the first one's as followed, once made).
+        held = [course.position for course in courses]
+        arrays = []
+        for i, (hand, course) in enumerate(zip(self.hands, courses, strict=True)):
+            other = (self.hands[1 - i], held[1 - i]) if len(self.hands) == 2 else None
+            played = played_counts(fingers, self.goal.keys, hand, course.skip)
+            made = plan_commands(hand, course, self.dt, plan_cfg, piece, played, other)
+            held[i] = made.tx_held
+            arrays.append(made)
+        plan = Plan(how, fingers, tuple(arrays))
+        self._restore(plan)
+        return plan
 
     def _uncrossed(self, goal):
         """``goal`` with the song's hand crossings given to the hand on that side
@@ -407,8 +423,12 @@ class IKPlanner(BaseController):
         self._uncrossed_goal = (goal, planned)
         return planned
 
-    def _plan_piece(self, goal, refinger: bool) -> None:
-        """The whole-piece plan of both hands (:mod:`pianist.control.planner.hand_plan`).
+    def _plan_piece(
+        self, goal, refinger: bool, plan_cfg: PlannerConfig
+    ) -> tuple[np.ndarray, list[HandPlan]]:
+        """The whole-piece plan of both hands (:mod:`pianist.control.planner.hand_plan`): the
+        fingering (T, 88) (the finger 0-9 of each due key) and each hand's plan, in the order
+        of ``hands``.
 
         The right hand is planned first. With ``share_keys`` (and the plan's fingering), keys
         one hand cannot reach from its plan (an octave, a chord wider than the hand) are
@@ -417,40 +437,53 @@ class IKPlanner(BaseController):
         stays with the hand the song gives it.
         """
         cfg = self.config
-        hands = sorted(self.hands, key=lambda h: h.side != "right")
-        plan = self._piece_planner(goal, refinger)
-        plan(hands[0])
-        if len(hands) == 2:
-            first, second = hands
+        order = sorted(range(len(self.hands)), key=lambda i: self.hands[i].side != "right")
+        plan = self._piece_planner(goal, refinger, plan_cfg)
+        hands = self.hands
+        courses: dict[int, HandPlan] = {order[0]: plan(order[0])}
+        if len(order) == 2:
+            first, second = order
             if refinger and cfg.share_keys:
-                plan(
+                courses[second] = plan(
                     second,
-                    take=first.skip,
-                    extra_cost=first.clearance(second, cfg),
-                    other_kept=_kept(first),
+                    take=courses[first].skip,
+                    extra_cost=clearance(hands[first], courses[first], hands[second], cfg),
+                    other_kept=_kept(courses[first]),
                 )
-                own_second = second.skip & second.own_keys(goal)
-                plan(
+                own_second = courses[second].skip & hands[second].own_keys(goal)
+                courses[first] = plan(
                     first,
                     take=own_second,
-                    extra_cost=second.clearance(first, cfg),
-                    other_kept=_kept(second),
+                    extra_cost=clearance(hands[second], courses[second], hands[first], cfg),
+                    other_kept=_kept(courses[second]),
                 )
                 for a, b in ((first, second), (second, first)):
-                    both = (a.key_fingers >= 0) & (b.key_fingers >= 0)
-                    b_loses = both & a.own_keys(goal)
-                    b.key_fingers[b_loses] = -1
+                    # A key both would play stays with the hand the song gives it.
+                    both = (courses[a].fingers >= 0) & (courses[b].fingers >= 0)
+                    b_loses = both & hands[a].own_keys(goal)
+                    courses[b] = dataclasses.replace(
+                        courses[b], fingers=np.where(b_loses, -1, courses[b].fingers)
+                    )
             else:
-                plan(second, other_kept=_kept(first))
-        for hand in self.hands:
-            mine = hand.key_fingers >= 0
-            self.fingers[mine] = hand.key_fingers[mine] + hand.finger_offset
-            hand.skip = goal.keys & ~(hand.key_fingers >= 0) & hand.own_keys(goal)
+                courses[second] = plan(second, other_kept=_kept(courses[first]))
+        return self._fingers_of(goal, courses)
 
-    def _plan_config(self) -> PlannerConfig:
-        """The config with the whole-piece plan's weights of the plan being made (its
+    def _fingers_of(self, goal, courses: dict[int, HandPlan]) -> tuple[np.ndarray, list[HandPlan]]:
+        """The fingering (T, 88) the hands' whole-piece plans (by index into ``hands``) give,
+        and the plans with their ``skip`` the hand's own keys they give no finger."""
+        fingers = goal.fingers.copy()
+        out = []
+        for i, hand in enumerate(self.hands):
+            course = courses[i]
+            played = course.fingers >= 0
+            fingers[played] = course.fingers[played] + hand.finger_offset
+            skip = goal.keys & ~played & hand.own_keys(goal)
+            out.append(dataclasses.replace(course, skip=skip))
+        return fingers, out
+
+    def _plan_config(self, how: PlanKind) -> PlannerConfig:
+        """The config with the whole-piece plan's weights of a plan made as ``how`` says (its
         objective, and :data:`TURN_FOR_SPANS`'s for the plan that turns for spans)."""
-        how = self._making
         costs = dataclasses.replace(
             self.config.hand_plan,
             objective=how.objective,
@@ -460,28 +493,37 @@ class IKPlanner(BaseController):
             return self.config
         return dataclasses.replace(self.config, hand_plan=costs)
 
-    def _piece_planner(self, goal, refinger: bool) -> Callable[..., None]:
-        """``Hand.plan_piece`` with this song's goal, key points, step and plan weights: call
-        it with a hand and the per-call options (``take``, ``drop``, ``extra_cost``)."""
-        return partial(
-            Hand.plan_piece,
-            goal=goal,
-            key_point=self.key_point,
-            dt=self.dt,
-            costs=self._plan_config().hand_plan,
-            refinger=refinger,
-            pose_change_s=self.config.pose_change_s,
-        )
+    def _piece_planner(
+        self, goal, refinger: bool, plan_cfg: PlannerConfig
+    ) -> Callable[..., HandPlan]:
+        """:func:`~pianist.control.planner.forearm.piece_plan` with this song's goal, key
+        points, step and plan weights: call it with a hand's index and the per-call options
+        (``take``, ``drop``, ``extra_cost``, ``other_kept``)."""
 
-    def _plan_split(self, goal) -> None:
+        def plan(i: int, **options: Any) -> HandPlan:
+            return piece_plan(
+                self.hands[i],
+                self.poses[i],
+                goal=goal,
+                key_point=self.key_point,
+                dt=self.dt,
+                costs=plan_cfg.hand_plan,
+                refinger=refinger,
+                pose_change_s=self.config.pose_change_s,
+                **options,
+            )
+
+        return plan
+
+    def _plan_split(self, goal, plan_cfg: PlannerConfig) -> tuple[np.ndarray, list[HandPlan]]:
         """Both hands' whole-piece plans for the keys the joint plan gives each
         (:func:`pianist.control.planner.hand_split.split_hands`), with the plan's fingering: the
         right hand first, then the left clear of it, then the right again clear of the
-        left."""
+        left. Returns the fingering and the plans as :meth:`_plan_piece` does."""
         cfg = self.config
-        right, left = sorted(self.hands, key=lambda h: h.side != "right")
+        r = 0 if self.hands[0].side == "right" else 1
+        right, left = r, 1 - r
         song_hand = np.where(goal.keys, np.where(goal.fingers < FINGERS_PER_HAND, 0, 1), -1)
-        right_reach, left_reach = right.reach_model(), left.reach_model()
         costs = SplitCosts(
             separation_m=cfg.forearm_separation_m,
             clearance_cost=cfg.clearance_cost,
@@ -492,26 +534,25 @@ class IKPlanner(BaseController):
             song_hand,
             self.key_point[:, 1],
             C.BLACK_KEY_MASK,
-            right_reach,
-            left_reach,
+            reach_model(self.hands[right], self.poses[right]),
+            reach_model(self.hands[left], self.poses[left]),
             self.dt,
             costs,
         )
-        plan = self._piece_planner(goal, refinger=True)
-        mine = {right.side: split == 0, left.side: split == 1}
-        order = ((right, None), (left, right), (right, left))
-        for hand, other in order:
-            plan(
-                hand,
-                take=mine[hand.side],
-                drop=goal.keys & ~mine[hand.side],
-                extra_cost=None if other is None else other.clearance(hand, cfg),
-                other_kept=None if other is None else _kept(other),
+        plan = self._piece_planner(goal, True, plan_cfg)
+        mine = {right: split == 0, left: split == 1}
+        courses: dict[int, HandPlan] = {}
+        for i, other in ((right, None), (left, right), (right, left)):
+            courses[i] = plan(
+                i,
+                take=mine[i],
+                drop=goal.keys & ~mine[i],
+                extra_cost=None
+                if other is None
+                else clearance(self.hands[other], courses[other], self.hands[i], cfg),
+                other_kept=None if other is None else _kept(courses[other]),
             )
-        for hand in self.hands:
-            played = hand.key_fingers >= 0
-            self.fingers[played] = hand.key_fingers[played] + hand.finger_offset
-            hand.skip = goal.keys & ~played & hand.own_keys(goal)
+        return self._fingers_of(goal, courses)
 
     # ----------------------------------------------------------------------------- acting
 
@@ -519,15 +560,13 @@ class IKPlanner(BaseController):
     # What :class:`pianist.control.refine.Refiner` needs to run this planner ahead on a fork
     # of the environment and bring it back.
 
-    def memory(self) -> list[dict[str, np.ndarray]]:
+    def memory(self) -> list[FingerMemory]:
         """A copy of what the planner remembers between steps (per hand, per finger)."""
-        return [{name: getattr(hand, name).copy() for name in _MEMORY} for hand in self.hands]
+        return [memory.copy() for memory in self.memories]
 
-    def set_memory(self, memory: list[dict[str, np.ndarray]]) -> None:
+    def set_memory(self, memory: list[FingerMemory]) -> None:
         """Go back to a :meth:`memory` copy."""
-        for hand, arrays in zip(self.hands, memory, strict=True):
-            for name, value in arrays.items():
-                setattr(hand, name, value.copy())
+        self.memories = [m.copy() for m in memory]
 
     def attach(self, handle: ControlHandle) -> None:
         """Act on another environment of the same song and scene from now on (a fork)."""
@@ -537,8 +576,9 @@ class IKPlanner(BaseController):
         """Act with other execution settings per hand (in the order of ``hands``; None: the
         planner's ``config``). Only the fields read while acting take effect: the plan and
         the posture samples were made at reset."""
-        for hand, hand_cfg in zip(self.hands, settings, strict=True):
-            hand.settings = hand_cfg
+        if len(settings) != len(self.hands):
+            raise ValueError(f"one setting per hand ({len(self.hands)}), not {len(settings)}")
+        self.hand_settings = list(settings)
         self._replay = None  # rehearsed with the planner's own settings
 
     def finger_action_dims(self) -> np.ndarray:
@@ -559,29 +599,49 @@ class IKPlanner(BaseController):
         scratch.qpos[:] = handle.data.qpos
         press_frame = min(t + cfg.press_lead_frames, T - 1)
         hover_end = min(T, press_frame + 1 + round(cfg.hover_lead_s / self.dt))
-        settings = [hand.settings or cfg for hand in self.hands]
-        for hand, hand_cfg in zip(self.hands, settings, strict=True):
-            hand.use_pose(int(hand.pose_held[t]))
-            hand.command_forearm(ctrl, handle.data, t, hand_cfg)
-            hand.set_wrist(scratch, ctrl, hand_cfg)
+        settings = [hand_cfg or cfg for hand_cfg in self.hand_settings]
+        poses, bent_up = [], []
+        for i, hand in enumerate(self.hands):
+            arrays, hand_cfg = self.plan.hands[i], settings[i]
+            pose_index = int(arrays.pose_held[t])
+            pose = self.poses[i][pose_index]
+            poses.append((pose_index, pose))
+            command_forearm(ctrl, handle.data, hand, self.servos[i], arrays.tx_path, t)
+            command_height(ctrl, handle.data, hand, pose.raise_m, hand_cfg)
+            bent_up.append(set_wrist(scratch, ctrl, hand, pose.wrist, pose.ty, hand_cfg))
             # The fingers are solved for where the moving forearm will be a little later:
             # their servos lag behind their commands by about a control step.
             scratch.qpos[hand.tx_qpos] += cfg.forearm_lead_s * handle.data.qvel[hand.tx_dof]
         mujoco.mj_kinematics(m, scratch)
-        for hand, hand_cfg in zip(self.hands, settings, strict=True):
-            targets, active = hand.fingertip_targets(self, t, hover_end, hand_cfg)
-            self.finger_states[t, hand.finger_offset : hand.finger_offset + 5] = hand.state
-            hand.solve(m, scratch, targets, active, hand_cfg)
-            ctrl[hand.finger_actuators] = hand.finger_controls(scratch)
+        for i, hand in enumerate(self.hands):
+            (pose_index, pose), hand_cfg = poses[i], settings[i]
+            targets, active, memory = fingertip_targets(
+                self, hand, self.plan.hands[i], pose, self.memories[i], t, hover_end, hand_cfg
+            )
+            self.memories[i] = memory
+            self.finger_states[t, hand.finger_offset : hand.finger_offset + 5] = memory.state
+            angles = solve_fingers(
+                m,
+                scratch,
+                hand,
+                pose.batch,
+                targets,
+                active,
+                memory,
+                bent_up[i],
+                pose_index > 0,
+                hand_cfg,
+            )
+            ctrl[hand.finger_actuators] = finger_controls(hand, angles)
         action = np.empty(m.nu + 1)
         action[:-1] = handle.ctrl_to_action(ctrl)
         action[-1] = 1.0 if self.goal.sustain[press_frame] else -1.0
         return action.astype(np.float32)
 
 
-def _kept(hand: Hand) -> np.ndarray:
+def _kept(course: HandPlan) -> np.ndarray:
     """(T,) the keys a hand's whole-piece plan gives its fingers, per frame."""
-    return (hand.key_fingers >= 0).sum(axis=1).astype(float)
+    return (course.fingers >= 0).sum(axis=1).astype(float)
 
 
 def forget_plans() -> None:

@@ -31,6 +31,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from pianist.control.planner.forearm import playable_mask as hand_playable_mask
+from pianist.control.planner.forearm import reach_model
 from pianist.control.planner.hand_plan import key_prefix_values
 from pianist.control.planner.hand_split import HandReach
 from pianist.control.scoring import step_f1
@@ -227,7 +229,10 @@ def planner_ceiling(
     hands could do more). A scene with one hand: the other reaches nothing and is never in
     the way."""
     cfg = planner.config
-    reach = reaches or {hand.side: [hand.reach_model()] for hand in planner.hands}
+    reach = reaches or {
+        hand.side: [reach_model(hand, poses)]
+        for hand, poses in zip(planner.hands, planner.poses, strict=True)
+    }
     nothing = np.zeros((5, 2, 2))
     right = reach.get("right", [HandReach(nothing, nothing, 1e3, (0.0, 0.0))])
     left = reach.get("left", [HandReach(nothing, nothing, -1e3, (0.0, 0.0))])
@@ -246,10 +251,10 @@ def planner_ceiling(
 
 def playable_mask(planner: IKPlanner) -> np.ndarray:
     """(T, 88) bool: the due keys ``planner``'s plan (after its reset) leaves playable at each
-    frame, both hands (:meth:`~pianist.control.planner.forearm.ForearmPlan.playable_mask`)."""
+    frame, both hands (:func:`pianist.control.planner.forearm.playable_mask`)."""
     mask = np.zeros(planner.goal.keys.shape, dtype=bool)
-    for hand in planner.hands:
-        mask |= hand.playable_mask(planner)
+    for hand, arrays, poses in zip(planner.hands, planner.plan.hands, planner.poses, strict=True):
+        mask |= hand_playable_mask(planner, hand, arrays, poses)
     return mask
 
 
@@ -267,11 +272,11 @@ def plan_key_classes(planner: IKPlanner) -> tuple[np.ndarray, np.ndarray]:
     keys = planner.goal.keys
     given = np.zeros_like(keys)
     in_shift = np.zeros_like(keys)
-    for hand in planner.hands:
+    for hand, arrays in zip(planner.hands, planner.plan.hands, strict=True):
         local = planner.fingers - hand.finger_offset
-        mine = keys & ~hand.skip & (local >= 0) & (local < 5)
+        mine = keys & ~arrays.skip & (local >= 0) & (local < 5)
         given |= mine
-        in_shift |= mine & hand.free[:, None]
+        in_shift |= mine & arrays.free[:, None]
     return keys & ~given, in_shift
 
 

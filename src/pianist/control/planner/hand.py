@@ -1,49 +1,110 @@
-"""One hand: its indices into the model and its state, and every stage's methods on it.
+"""One hand as the planner's stages see it: its indices into the model, and its fingers' memory.
 
-:class:`Hand` gathers the stages' mixins (:class:`HandPostures`, :class:`ForearmPlan`,
-:class:`FingerTargets`, :class:`FingerIK`, one per module). Its ``__init__`` finds the hand's
-forearm slides, wrist and finger actuators and fingertip sites in the model, and starts the
-per-finger memory that the fingertip targets keep between steps.
+- :class:`Finger`: one finger's actuated joints (actuator ids, limits, qpos and dof
+  addresses, how a command spreads over a tendon's joints);
+- :class:`Hand`: a hand's forearm slides, wrist, fingers and fingertip sites, read from the
+  model once per episode (frozen: no stage writes to it);
+- :class:`FingerMemory`: what each finger remembers from one step to the next (the press,
+  hover and push decisions of :mod:`targets` read it and return it updated).
+
+The stages are functions of these and of arrays: the poses (:mod:`postures`), the plan
+(:mod:`forearm`, :mod:`plans`), the fingertip targets (:mod:`targets`) and the IK (:mod:`ik`).
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field, fields
+
 import mujoco
 import numpy as np
 
-from pianist.control.planner.config import FINGER_PREFIXES, FINGERS_PER_HAND, PlannerConfig
-from pianist.control.planner.forearm import ForearmPlan
-from pianist.control.planner.ik import FingerIK
-from pianist.control.planner.postures import Finger, HandPostures, _actuated_qpos
-from pianist.control.planner.targets import FingerTargets
+from pianist.control.planner.config import FINGER_PREFIXES, FINGERS_PER_HAND
 from pianist.sim import constants as C
 
 
-class Hand(HandPostures, ForearmPlan, FingerTargets, FingerIK):
-    """One hand: its indices, posture samples, forearm plan and per-finger IK."""
+class Finger:
+    """The actuated joints of one finger: actuator ids, limits, how to set and differentiate.
 
-    def __init__(self, m, hand, full_hand: bool = False) -> None:
-        self.side = hand.side
-        self.finger_offset = 0 if hand.side == "right" else FINGERS_PER_HAND
-        self.sites = np.asarray(hand.fingertip_sites)
+    ``dof`` actuators (a joint each, or a tendon over two joints); ``low``, ``high`` (dof,) rad
+    their command limits. Made once per episode; nothing changes it after."""
+
+    def __init__(self, m, actuators: list[int], site: int) -> None:
+        self.actuators = np.asarray(actuators, dtype=int)
+        self.site = site
+        self.dof = len(actuators)
+        self.qpos = [_actuated_qpos(m, a) for a in actuators]
+        self.dofs = [m.jnt_dofadr[_actuated_joints(m, a)] for a in actuators]
+        self.share = np.array([1.0 / len(q) for q in self.qpos])  # tendon: split evenly
+        self.low, self.high = m.actuator_ctrlrange[self.actuators].T
+        self.names = [m.actuator(a).name for a in actuators]
+        # Flat index arrays (the IK calls these every iteration): joint j of the finger is
+        # driven by actuator owner[j] with a share of its command.
+        owner = np.repeat(np.arange(self.dof), [len(q) for q in self.qpos])
+        self._qpos, self._owner = np.concatenate(self.qpos), owner
+        self._share = self.share[owner]
+        self._dofs = np.concatenate(self.dofs)
+        self._mix = np.zeros((len(owner), self.dof))  # joint velocities -> actuator space
+        self._mix[np.arange(len(owner)), owner] = self._share
+
+    def set(self, data, angles: np.ndarray) -> None:
+        """Write the finger's actuator angles (dof,) rad to its joints in ``data.qpos``."""
+        data.qpos[self._qpos] = angles[self._owner] * self._share
+
+    def jacobian(self, jacp: np.ndarray) -> np.ndarray:
+        """(3, dof) fingertip Jacobian in actuator space from the full (3, nv) one."""
+        return jacp[:, self._dofs] @ self._mix
+
+
+@dataclass(frozen=True, eq=False)
+class Hand:
+    """One hand's indices into the model (:meth:`build`): slides, wrist, fingers, sites."""
+
+    side: str
+    """"right" or "left"."""
+    finger_offset: int
+    """0 for the right hand, 5 for the left: its fingers' numbers are offset + 0-4."""
+    sites: np.ndarray
+    """(5,) int: the fingertip sites, thumb first."""
+    forearm_body: int
+    """The forearm body: fingertip targets are relative to its origin."""
+    tx_qpos: int
+    tx_dof: int
+    tx_actuator: int
+    tx_range: np.ndarray
+    """(2,) m: the ``tx`` slide's range (along the keyboard)."""
+    root_y: float
+    """m: the forearm's y at ``tx`` 0."""
+    tz_actuator: int | None
+    tz_qpos: int | None
+    tz_range: np.ndarray | None
+    """(2,) m: the height slide's command range, None where the scene has no ``tz``."""
+    ty_actuator: int | None
+    ty_qpos: int | None
+    fingers: tuple[Finger, ...]
+    """Thumb to little finger."""
+    wrist: tuple[tuple[int, np.ndarray], ...]
+    """(actuator, qpos addresses) of WRJ2 (sideways), then WRJ1 (flexion)."""
+    held_actuators: np.ndarray
+    """Actuators of joints the reduced hand does without (commanded 0 every step in the full
+    action space, unless ``full_hand``)."""
+    finger_actuators: np.ndarray
+    """Every finger's actuators, thumb first: the order of the IK's controls."""
+
+    @property
+    def slide_range(self) -> tuple[float, float]:
+        """The ``tx`` slide's range (m)."""
+        return float(self.tx_range[0]), float(self.tx_range[1])
+
+    @classmethod
+    def build(cls, m, hand, full_hand: bool = False) -> Hand:
+        """The indices of the scene's ``hand`` (a :class:`pianist.sim.scene` hand) in ``m``;
+        ``full_hand``: drive every finger joint of the action space (not the reduced hand's)."""
         prefix = C.HAND_PREFIX[hand.side]
-        self.forearm_body = m.body(f"{prefix}forearm").id
-        self.tx_qpos = m.jnt_qposadr[m.joint(f"{prefix}forearm_tx").id]
-        self.tx_range = m.jnt_range[m.joint(f"{prefix}forearm_tx").id]
-        self.tx_actuator = m.actuator(f"{prefix}A_forearm_tx").id
-        self.tx_dof = m.jnt_dofadr[m.joint(f"{prefix}forearm_tx").id]
-        self.root_y = C.FOREARM_ROOT_POS_M[hand.side][1]
+        tx = m.joint(f"{prefix}forearm_tx").id
         tz = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, f"{prefix}A_forearm_tz")
-        self.tz_actuator = tz if tz >= 0 else None
-        self.tz_qpos = m.jnt_qposadr[m.joint(f"{prefix}forearm_tz").id] if tz >= 0 else None
-        self.tz_range = m.actuator_ctrlrange[tz] if tz >= 0 else None
         ty = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, f"{prefix}A_forearm_ty")
-        self.ty_actuator = ty if ty >= 0 else None
-        self.ty_qpos = m.jnt_qposadr[m.joint(f"{prefix}forearm_ty").id] if ty >= 0 else None
-
-        # Actuated joints of each finger (a joint, or a tendon over two joints) and the wrist.
-        self.fingers: list[Finger] = []
-        self.wrist: list[tuple[int, np.ndarray]] = []
+        sites = np.asarray(hand.fingertip_sites)
+        fingers = []
         for i, finger_prefix in enumerate(FINGER_PREFIXES):
             acts = [
                 a
@@ -51,38 +112,103 @@ class Hand(HandPostures, ForearmPlan, FingerTargets, FingerIK):
                 if m.actuator(a).name.startswith(f"{prefix}A_{finger_prefix}")
                 and (full_hand or not _reduced_away(m.actuator(a).name))
             ]
-            finger = Finger(m, acts, int(self.sites[i]))
+            finger = Finger(m, acts, int(sites[i]))
             if not full_hand:
                 _narrow_to_reduced(finger)
-            self.fingers.append(finger)
-        # Actuators of joints the reduced hand does without, commanded 0 every step (in the
-        # full action space, unless ``full_hand``).
-        self.held_actuators = np.array(
-            [a for a in hand.actuators if not full_hand and _reduced_away(m.actuator(a).name)],
-            dtype=int,
+            fingers.append(finger)
+        return cls(
+            side=hand.side,
+            finger_offset=0 if hand.side == "right" else FINGERS_PER_HAND,
+            sites=sites,
+            forearm_body=m.body(f"{prefix}forearm").id,
+            tx_qpos=int(m.jnt_qposadr[tx]),
+            tx_dof=int(m.jnt_dofadr[tx]),
+            tx_actuator=m.actuator(f"{prefix}A_forearm_tx").id,
+            tx_range=m.jnt_range[tx].copy(),
+            root_y=C.FOREARM_ROOT_POS_M[hand.side][1],
+            tz_actuator=tz if tz >= 0 else None,
+            tz_qpos=int(m.jnt_qposadr[m.joint(f"{prefix}forearm_tz").id]) if tz >= 0 else None,
+            tz_range=m.actuator_ctrlrange[tz].copy() if tz >= 0 else None,
+            ty_actuator=ty if ty >= 0 else None,
+            ty_qpos=int(m.jnt_qposadr[m.joint(f"{prefix}forearm_ty").id]) if ty >= 0 else None,
+            fingers=tuple(fingers),
+            wrist=tuple(
+                (int(a), _actuated_qpos(m, a))
+                for a in hand.actuators
+                if m.actuator(a).name.startswith(f"{prefix}A_WR")
+            ),
+            held_actuators=np.array(
+                [a for a in hand.actuators if not full_hand and _reduced_away(m.actuator(a).name)],
+                dtype=int,
+            ),
+            finger_actuators=np.concatenate([f.actuators for f in fingers]),
         )
-        for a in hand.actuators:
-            if m.actuator(a).name.startswith(f"{prefix}A_WR"):
-                self.wrist.append((int(a), _actuated_qpos(m, a)))
-        self.finger_actuators = np.concatenate([f.actuators for f in self.fingers])
-        self.jacp = np.zeros((3, m.nv))
-        self.pressing = np.zeros(FINGERS_PER_HAND, dtype=bool)
-        self.free = np.zeros(0, dtype=bool)
-        self.stuck = np.zeros(FINGERS_PER_HAND, dtype=int)
-        self.last_tips = np.zeros((FINGERS_PER_HAND, 3))
-        self.last_key = np.full(FINGERS_PER_HAND, -1)  # key each finger pressed last, or -1
-        self.unsounded = np.zeros(FINGERS_PER_HAND, dtype=int)  # see FingerTargets
-        self.repress = np.zeros(FINGERS_PER_HAND, dtype=bool)
-        self.state = np.zeros(FINGERS_PER_HAND, dtype=np.int8)  # FingerState.LIFTED
-        self.active = np.zeros(FINGERS_PER_HAND, dtype=bool)
-        # The push each finger is giving (a soft note, see strikes.py): its key (-1: none),
-        # the step its key should sound at and the depth sent the last step (m).
-        self.push_key = np.full(FINGERS_PER_HAND, -1)
-        self.push_sound = np.full(FINGERS_PER_HAND, -1)
-        self.push_depth = np.zeros(FINGERS_PER_HAND)
-        # Execution settings of this hand alone (IKPlanner.set_hand_settings); None: the
-        # planner's config.
-        self.settings: PlannerConfig | None = None
+
+    def own_keys(self, goal) -> np.ndarray:
+        """(T, 88) bool: the due keys the song gives this hand."""
+        local = goal.fingers - self.finger_offset
+        return goal.keys & (local >= 0) & (local < FINGERS_PER_HAND)
+
+
+def _zeros_int() -> np.ndarray:
+    return np.zeros(FINGERS_PER_HAND, dtype=int)
+
+
+def _none_int() -> np.ndarray:
+    return np.full(FINGERS_PER_HAND, -1)
+
+
+@dataclass(eq=False)
+class FingerMemory:
+    """What a hand's fingers remember between steps, (5,) arrays thumb first (the fingertip
+    targets read it and return it updated,
+    :func:`~pianist.control.planner.targets.fingertip_targets`; a look-ahead copies it and
+    goes back to the copy)."""
+
+    pressing: np.ndarray = field(default_factory=lambda: np.zeros(FINGERS_PER_HAND, dtype=bool))
+    """bool: sent below its key's top this step."""
+    stuck: np.ndarray = field(default_factory=_zeros_int)
+    """int: steps a hovering finger has stood still (``still_m``)."""
+    last_tips: np.ndarray = field(default_factory=lambda: np.zeros((FINGERS_PER_HAND, 3)))
+    """(5, 3) m: the fingertips last step (world frame)."""
+    last_key: np.ndarray = field(default_factory=_none_int)
+    """int: the key each finger pressed last, kept while it hovers on to the next (-1: none)."""
+    unsounded: np.ndarray = field(default_factory=_zeros_int)
+    """int: steps a finger has pressed the same key without it sounding."""
+    repress: np.ndarray = field(default_factory=lambda: np.zeros(FINGERS_PER_HAND, dtype=bool))
+    """bool: pressing again this step the key it let up the step before (a re-strike)."""
+    state: np.ndarray = field(default_factory=lambda: np.zeros(FINGERS_PER_HAND, dtype=np.int8))
+    """int8: each finger's :class:`~pianist.control.planner.targets.FingerState` this step."""
+    active: np.ndarray = field(default_factory=lambda: np.zeros(FINGERS_PER_HAND, dtype=bool))
+    """bool: which fingers had a target this step (the others took their lifted posture)."""
+    push_key: np.ndarray = field(default_factory=_none_int)
+    """int: the key of the soft note a finger is pushing (-1: none, see :mod:`strikes`)."""
+    push_sound: np.ndarray = field(default_factory=_none_int)
+    """int: the step that pushed key should sound at."""
+    push_depth: np.ndarray = field(default_factory=lambda: np.zeros(FINGERS_PER_HAND))
+    """m: the push's depth sent last step."""
+
+    def copy(self) -> FingerMemory:
+        """A copy whose arrays share nothing with this one."""
+        return FingerMemory(**{f.name: getattr(self, f.name).copy() for f in fields(self)})
+
+    def equals(self, other: FingerMemory) -> bool:
+        """Whether every array is the same."""
+        return all(
+            np.array_equal(getattr(self, f.name), getattr(other, f.name)) for f in fields(self)
+        )
+
+
+def _actuated_joints(m, actuator: int) -> np.ndarray:
+    if m.actuator_trntype[actuator] == mujoco.mjtTrn.mjTRN_TENDON:
+        tendon = m.actuator_trnid[actuator, 0]
+        start, count = m.tendon_adr[tendon], m.tendon_num[tendon]
+        return m.wrap_objid[start : start + count]
+    return np.array([m.actuator_trnid[actuator, 0]])
+
+
+def _actuated_qpos(m, actuator: int) -> np.ndarray:
+    return m.jnt_qposadr[_actuated_joints(m, actuator)]
 
 
 def _reduced_away(actuator_name: str) -> bool:

@@ -8,26 +8,30 @@ clipped to their limits; an inactive one takes its lifted posture. A pressing fi
 pushed further down (``thumb_push_rad``, ``finger_push_rad``).
 
 The five fingers are solved together: their postures are padded to the widest finger's
-actuators (:class:`_Batch`), so that each iteration is one kinematics pass and a handful of
+actuators (:class:`FingerBatch`), so that each iteration is one kinematics pass and a handful of
 batched array operations instead of five rounds of small ones (the IK runs at every control
 step for every hand, and per-call overhead, not arithmetic, was its cost). A padded actuator
 has no Jacobian column and limits (0, 0): it never moves, and the real ones get the same
 steps as a finger solved alone.
 
-Output: every finger's ``angles`` (dof,) rad (also set in the scratch state);
-``finger_controls`` concatenates them, thumb to little finger: the hand's finger commands.
+Output (:func:`solve_fingers`): every finger's angles, (5, D) rad padded (also set in the
+scratch state); :func:`finger_controls` gathers them, thumb to little finger: the hand's
+finger commands. A hand's :class:`FingerBatch` per pose is made with the pose
+(:class:`~pianist.control.planner.postures.HandPose`).
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import mujoco
 import numpy as np
 
-from pianist.control.planner.postures import Finger
+from pianist.control.planner.hand import Finger, FingerMemory, Hand
 from pianist.control.planner.targets import FingerState
 
 
-class _Batch:
+class FingerBatch:
     """A hand's five fingers laid out side by side, padded to ``D`` actuators each.
 
     Arrays (F = 5 fingers, D = the most actuators of a finger, S = posture samples, J = the
@@ -41,14 +45,23 @@ class _Batch:
     - ``samples`` (F, S, D) rad and ``tips`` (F, S, 3) m: the sampled postures and their
       fingertips in the forearm frame;
     - ``tip_norms`` (F, S) m^2: the squared length of each of those fingertips;
-    - ``lift`` (F, D) rad: the lifted postures.
+    - ``lift`` (F, D) rad: the lifted postures;
+    - ``jacs`` (F, 3, nv), ``jacp`` (3, nv): scratch Jacobians the solve writes into.
     """
 
-    def __init__(self, fingers: list[Finger], nv: int) -> None:
+    def __init__(
+        self,
+        fingers: Sequence[Finger],
+        samples: Sequence[tuple[np.ndarray, np.ndarray]],
+        lift: Sequence[np.ndarray],
+        nv: int,
+    ) -> None:
+        """``samples``: per finger, its sampled postures (S, dof) rad and their fingertips
+        (S, 3) m in the forearm frame; ``lift``: per finger, its lifted posture (dof,)."""
         F = len(fingers)
         D = max(f.dof for f in fingers)
         J = max(len(f._dofs) for f in fingers)
-        S = len(fingers[0].samples)
+        S = len(samples[0][0])
         self.width = D
         self.sites = np.array([f.site for f in fingers])
         self.low, self.high = np.zeros((F, D)), np.zeros((F, D))
@@ -62,16 +75,18 @@ class _Batch:
             self.low[f, :d], self.high[f, :d] = finger.low, finger.high
             self.dofs[f, :j] = finger._dofs
             self.mix[f, :j, :d] = finger._mix
-            self.samples[f, :, :d] = finger.samples
-            self.tips[f] = finger.sample_tips
-            self.lift[f, :d] = finger.lift
+            self.samples[f, :, :d] = samples[f][0]
+            self.tips[f] = samples[f][1]
+            self.lift[f, :d] = lift[f]
             qpos.append(finger._qpos)
             source.append(f * D + finger._owner)
             share.append(finger._share)
         self.tip_norms = np.einsum("fsi,fsi->fs", self.tips, self.tips)
         self.qpos, self.source = np.concatenate(qpos), np.concatenate(source)
         self.share = np.concatenate(share)
-        self.made_from = [(f.samples, f.lift) for f in fingers]
+        # Scratch Jacobians: each finger's fingertip (F, 3, nv), and one finger's (3, nv).
+        self.jacs = np.zeros((F, 3, nv))
+        self.jacp = np.zeros((3, nv))
         self.nv = nv
         self._subsets: dict[tuple[bytes, bytes, float, float], _Subset] = {}
         self._dampings: dict[float, np.ndarray] = {}
@@ -101,14 +116,6 @@ class _Batch:
             eye = self._dampings[value] = value * np.eye(self.width)
         return eye
 
-    def current(self, fingers: list[Finger]) -> bool:
-        """Whether the fingers still have the samples and lifted postures this was made from
-        (a reset may give them new ones)."""
-        return all(
-            f.samples is s and f.lift is lift
-            for f, (s, lift) in zip(fingers, self.made_from, strict=True)
-        )
-
     def nearest(
         self, fingers: np.ndarray, targets: np.ndarray, weights: np.ndarray | None = None
     ) -> np.ndarray:
@@ -132,7 +139,7 @@ class _Batch:
 
 
 class _Subset:
-    """The padded arrays of the k active fingers ``fingers`` (k,) of a :class:`_Batch`:
+    """The padded arrays of the k active fingers ``fingers`` (k,) of a :class:`FingerBatch`:
     ``sites`` (k,), ``low``, ``high`` (k, D), ``mix`` (k, J, D), ``weights`` (k, 3) the
     error's weights (the thumb's across the keys: ``thumb_lateral_weight``), ``row_weights``
     (k, 3, 1) the same for the Jacobian's rows, and ``jacobian_index`` (k, 3, J): where each
@@ -140,7 +147,7 @@ class _Subset:
 
     def __init__(
         self,
-        b: _Batch,
+        b: FingerBatch,
         fingers: np.ndarray,
         thumb_lateral_weight: float,
         raised: np.ndarray,
@@ -160,88 +167,90 @@ class _Subset:
         self.jacobian_index = rows[:, :, None] + b.dofs[fingers][:, None, :]
 
 
-class FingerIK:
-    """A hand's per-finger inverse kinematics."""
+def solve_fingers(
+    m,
+    scratch,
+    hand: Hand,
+    batch: FingerBatch,
+    targets: np.ndarray,
+    active: np.ndarray,
+    memory: FingerMemory,
+    wrist_bent_up: float,
+    reach_pose: bool,
+    cfg,
+) -> np.ndarray:
+    """Every finger's joint angles for its fingertip target, set in ``scratch`` too.
 
-    # Set by ``Hand.__init__`` (and ``pressing`` by ``FingerTargets.fingertip_targets``).
-    fingers: list[Finger]
-    forearm_body: int
-    jacp: np.ndarray
-    pressing: np.ndarray
-    unsounded: np.ndarray
-    repress: np.ndarray
-    wrist_bent_up: float  # set by ``HandPostures.set_wrist`` each step
-    pose_index: int  # the pose in use (``HandPostures.use_pose``)
-    state: np.ndarray  # (5,) each finger's FingerState this step (``FingerTargets``)
-    _batches: dict[int, _Batch]
-    _jacs: np.ndarray  # (F, 3, nv) each finger's fingertip Jacobian
-
-    def _batched(self) -> _Batch:
-        """The batched arrays of the pose in use (made once per pose and reset)."""
-        batches = self.__dict__.setdefault("_batches", {})
-        batch = batches.get(self.pose_index)
-        if batch is None or not batch.current(self.fingers):
-            batch = batches[self.pose_index] = _Batch(self.fingers, self.jacp.shape[1])
-            self._jacs = np.zeros((len(self.fingers), 3, self.jacp.shape[1]))
-        return batch
-
-    def solve(self, m, scratch, targets: np.ndarray, active: np.ndarray, cfg) -> None:
-        """Set each finger's joints in ``scratch``: nearest sampled posture, then DLS."""
-        b = self._batched()
-        angles = b.lift.copy()  # (F, D)
-        # In a reach pose a hovering finger keeps its height first (``hover_height_weight``).
-        weight = cfg.hover_height_weight if self.pose_index > 0 else 1.0
-        sub = b.subset(active, cfg.thumb_lateral_weight, self.state == FingerState.HOVERING, weight)
-        act = sub.fingers
-        if act.size:
-            goal = targets[act]
-            angles[act] = b.nearest(act, goal, sub.raised_weights)
-            damping = b.damping(cfg.damping**2 + cfg.rest_weight)
-            limit = cfg.step_limit_rad
-            jacs = self._jacs
-            flat = jacs.reshape(-1)  # a view: mj_jacSite writes into jacs
-        b.set(scratch, angles)
-        for _ in range(cfg.iterations if act.size else 0):
-            mujoco.mj_kinematics(m, scratch)
-            mujoco.mj_comPos(m, scratch)  # mj_jacSite reads cdof and subtree centres
-            origin = scratch.xpos[self.forearm_body]
-            error = (goal - (scratch.site_xpos[sub.sites] - origin)) * sub.weights  # (k, 3)
-            for f, site in sub.pairs:
-                mujoco.mj_jacSite(m, scratch, jacs[f], None, site)
-            J = (flat[sub.jacobian_index] @ sub.mix) * sub.row_weights  # (k, 3, D)
-            JT = J.transpose(0, 2, 1)
-            step = np.linalg.solve(JT @ J + damping, JT @ error[:, :, None])[:, :, 0]
-            # np.minimum / np.maximum: np.clip's result at a fraction of its call's cost.
-            step = np.minimum(np.maximum(step, -limit), limit)
-            angles[act] = np.minimum(np.maximum(angles[act] + step, sub.low), sub.high)
-            b.set(scratch, angles)
-        for f, finger in enumerate(self.fingers):
-            finger.angles = angles[f, : finger.dof]
-        if not act.size:
-            return
-        # A pressing finger is commanded further along the joint direction that lowers its
-        # tip: the position servos' force grows with that error, and a target out of reach
-        # (often the thumb's) leaves the IK at the boundary with too little error to push.
-        if not self.pressing.any():
-            return
+    Args:
+        m: the model; ``scratch``: an ``MjData`` with the forearm and wrist as commanded
+            (the fingers' joints are overwritten).
+        hand: the hand's indices; ``batch``: its fingers' postures in the pose in use.
+        targets: (5, 3) m fingertip targets relative to the forearm body; ``active`` (5,)
+            bool which fingers have one (the others take their lifted posture).
+        memory: this step's finger decisions (``pressing``, ``unsounded``, ``repress``,
+            ``state``: :func:`~pianist.control.planner.targets.fingertip_targets`).
+        wrist_bent_up: rad the keys have bent the wrist up from its pose
+            (:func:`~pianist.control.planner.postures.set_wrist`).
+        reach_pose: whether the hand is in a reach pose (not the home pose).
+    Returns:
+        (5, D) rad: each finger's actuator angles, padded to the batch's width (a finger's
+        first ``dof`` are its own; :func:`finger_controls` gathers them).
+    """
+    b = batch
+    angles = b.lift.copy()  # (F, D)
+    # In a reach pose a hovering finger keeps its height first (``hover_height_weight``).
+    weight = cfg.hover_height_weight if reach_pose else 1.0
+    sub = b.subset(active, cfg.thumb_lateral_weight, memory.state == FingerState.HOVERING, weight)
+    act = sub.fingers
+    if act.size:
+        goal = targets[act]
+        angles[act] = b.nearest(act, goal, sub.raised_weights)
+        damping = b.damping(cfg.damping**2 + cfg.rest_weight)
+        limit = cfg.step_limit_rad
+        jacs = b.jacs
+        flat = jacs.reshape(-1)  # a view: mj_jacSite writes into jacs
+    b.set(scratch, angles)
+    for _ in range(cfg.iterations if act.size else 0):
         mujoco.mj_kinematics(m, scratch)
-        mujoco.mj_comPos(m, scratch)
-        for f in np.flatnonzero(self.pressing).tolist():
-            finger = self.fingers[f]
-            amount = cfg.thumb_push_rad if f == 0 else cfg.finger_push_rad[f - 1]
-            if self.unsounded[f] >= cfg.unsounded_steps:  # pressing its key, not sounding it
-                amount += cfg.unsounded_push_rad
-            if self.repress[f]:  # pressing again the key it let up last step
-                amount += cfg.restrike_push_rad[f]
-            # The other fingers' keys bend the wrist up and lift this one off its key.
-            bent = cfg.reach_bent_wrist_push if self.pose_index > 0 else cfg.bent_wrist_push
-            amount += bent * self.wrist_bent_up
-            mujoco.mj_jacSite(m, scratch, self.jacp, None, finger.site)
-            down = -finger.jacobian(self.jacp)[2]
-            norm = np.linalg.norm(down)
-            if amount > 0 and norm > 0:
-                push = finger.angles + amount * down / norm
-                finger.angles = np.clip(push, finger.low, finger.high)
+        mujoco.mj_comPos(m, scratch)  # mj_jacSite reads cdof and subtree centres
+        origin = scratch.xpos[hand.forearm_body]
+        error = (goal - (scratch.site_xpos[sub.sites] - origin)) * sub.weights  # (k, 3)
+        for f, site in sub.pairs:
+            mujoco.mj_jacSite(m, scratch, jacs[f], None, site)
+        J = (flat[sub.jacobian_index] @ sub.mix) * sub.row_weights  # (k, 3, D)
+        JT = J.transpose(0, 2, 1)
+        step = np.linalg.solve(JT @ J + damping, JT @ error[:, :, None])[:, :, 0]
+        # np.minimum / np.maximum: np.clip's result at a fraction of its call's cost.
+        step = np.minimum(np.maximum(step, -limit), limit)
+        angles[act] = np.minimum(np.maximum(angles[act] + step, sub.low), sub.high)
+        b.set(scratch, angles)
+    # A pressing finger is commanded further along the joint direction that lowers its
+    # tip: the position servos' force grows with that error, and a target out of reach
+    # (often the thumb's) leaves the IK at the boundary with too little error to push.
+    if not act.size or not memory.pressing.any():
+        return angles
+    mujoco.mj_kinematics(m, scratch)
+    mujoco.mj_comPos(m, scratch)
+    for f in np.flatnonzero(memory.pressing).tolist():
+        finger = hand.fingers[f]
+        amount = cfg.thumb_push_rad if f == 0 else cfg.finger_push_rad[f - 1]
+        if memory.unsounded[f] >= cfg.unsounded_steps:  # pressing its key, not sounding it
+            amount += cfg.unsounded_push_rad
+        if memory.repress[f]:  # pressing again the key it let up last step
+            amount += cfg.restrike_push_rad[f]
+        # The other fingers' keys bend the wrist up and lift this one off its key.
+        bent = cfg.reach_bent_wrist_push if reach_pose else cfg.bent_wrist_push
+        amount += bent * wrist_bent_up
+        mujoco.mj_jacSite(m, scratch, b.jacp, None, finger.site)
+        down = -finger.jacobian(b.jacp)[2]
+        norm = np.linalg.norm(down)
+        if amount > 0 and norm > 0:
+            push = angles[f, : finger.dof] + amount * down / norm
+            angles[f, : finger.dof] = np.clip(push, finger.low, finger.high)
+    return angles
 
-    def finger_controls(self, scratch) -> np.ndarray:
-        return np.concatenate([f.angles for f in self.fingers])
+
+def finger_controls(hand: Hand, angles: np.ndarray) -> np.ndarray:
+    """The hand's finger commands (rad), thumb to little finger in the order of
+    ``hand.finger_actuators``, from :func:`solve_fingers`' padded (5, D) angles."""
+    return np.concatenate([angles[f, : finger.dof] for f, finger in enumerate(hand.fingers)])

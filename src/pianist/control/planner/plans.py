@@ -12,7 +12,7 @@ from __future__ import annotations
 import hashlib
 from collections import OrderedDict
 from dataclasses import dataclass, fields
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -26,8 +26,9 @@ if TYPE_CHECKING:
 
 @dataclass(frozen=True)
 class HandPlanArrays:
-    """One hand's plan for a song of T frames (:meth:`ForearmPlan.plan_commands` and the plans
-    before it make them; the execution stages read them from the hand, :meth:`bind`)."""
+    """One hand's plan for a song of T frames, as it plays it
+    (:func:`pianist.control.planner.forearm.plan_commands` makes it from the hand's plan; the
+    execution stages are given it)."""
 
     tx_plan: np.ndarray
     """(T,) m: the forearm slide's planned position at each frame."""
@@ -43,30 +44,15 @@ class HandPlanArrays:
     """(T,) int: during a shift, the frame it moves for."""
     tx_path: np.ndarray
     """(T + 2, 2): the slide's reference position (m) and velocity (m/s) after each step."""
-    tx_servo: Any
-    """The slide servo's model the path is steered with (``forearm._Servo``)."""
     pose_plan: np.ndarray
     """(T,) int: the hand's planned pose at each frame (0: home)."""
     pose_held: np.ndarray
     """(T,) int: the pose commanded at each step (each turn made in its shift's frames)."""
 
-    @classmethod
-    def of(cls, hand: object) -> HandPlanArrays:
-        """The plan a hand holds now."""
-        return cls(**{f.name: getattr(hand, f.name) for f in fields(cls)})
-
-    def bind(self, hand: object) -> None:
-        """Give ``hand`` this plan (the arrays are shared, never changed)."""
-        for f in fields(self):
-            setattr(hand, f.name, getattr(self, f.name))
-
     def same_as(self, other: HandPlanArrays) -> bool:
-        """Whether the two plans are equal array for array (the servo's model, the same for
-        every plan of a hand, aside)."""
+        """Whether the two plans are equal array for array."""
         return all(
-            np.array_equal(getattr(self, f.name), getattr(other, f.name))
-            for f in fields(self)
-            if f.name != "tx_servo"
+            np.array_equal(getattr(self, f.name), getattr(other, f.name)) for f in fields(self)
         )
 
 
@@ -94,9 +80,7 @@ class Plan:
         T = self.fingers.shape[0]
         pairs = [(self.fingers, other.fingers)]
         for a, b in zip(self.hands, other.hands, strict=True):
-            pairs += [
-                (getattr(a, f.name), getattr(b, f.name)) for f in fields(a) if f.name != "tx_servo"
-            ]
+            pairs += [(getattr(a, f.name), getattr(b, f.name)) for f in fields(a)]
         first = T
         for x, y in pairs:
             rows = (np.asarray(x) != np.asarray(y)).reshape(len(x), -1).any(axis=1)

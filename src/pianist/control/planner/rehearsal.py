@@ -26,6 +26,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from pianist.control.lookahead import LookAhead
+from pianist.control.planner.hand import FingerMemory
 from pianist.control.scoring import step_f1
 from pianist.env.handle import ControlHandle
 from pianist.env.tape import StepTape, same_state
@@ -38,7 +39,7 @@ class Rehearsable(Protocol):
     """(T, 10) the fingers' states per step, as played."""
 
     def attach(self, handle: ControlHandle) -> None: ...
-    def memory(self) -> list[dict[str, np.ndarray]]: ...
+    def memory(self) -> list[FingerMemory]: ...
     def act(self, observation: object = None) -> np.ndarray: ...
 
 
@@ -62,7 +63,7 @@ class Replay:
 
     actions: np.ndarray
     tape: StepTape
-    memories: list[list[dict[str, np.ndarray]]]
+    memories: list[list[FingerMemory]]
     finger_states: np.ndarray
     f1s: np.ndarray
     states: dict[int, Any] = field(default_factory=dict)
@@ -120,7 +121,7 @@ def rehearse(
     if look.tape is None:
         raise ValueError("a rehearsal records its steps: start the look-ahead with record=True")
     actions: list[np.ndarray] = []
-    memories: list[list[dict[str, np.ndarray]]] = []
+    memories: list[list[FingerMemory]] = []
     f1s: list[float] = []
     if after is not None:
         head, k = after
