@@ -30,7 +30,7 @@ def _targets(planner, now, hover_end, hand=0):
     arrays = planner.plan.hands[hand]
     pose = planner.poses[hand][int(arrays.pose_held[now])]
     targets, active, memory = fingertip_targets(
-        planner, planner.hands[hand], arrays, pose, planner.memories[hand], now, hover_end
+        planner, planner.hands[hand], arrays, pose.lift_tips, planner.memories[hand], now, hover_end
     )
     planner.memories[hand] = memory
     return targets, active
@@ -274,7 +274,8 @@ def test_a_thumb_that_cannot_line_up_at_hover_height_presses_from_where_it_stand
         arrays.pose_plan,
     )
     moved = plan_commands(hand, course, planner.dt, planner.config, multi_step=False)
-    planner.plan = Plan(planner.plan.kind, planner.plan.fingers, (moved,))
+    others = planner.plan.hands[1:]
+    planner.plan = Plan(planner.plan.kind, planner.plan.fingers, (moved, *others))
     key = 60 - 21
     down = []
     for _ in range(31):
@@ -650,12 +651,7 @@ def test_the_joint_plan_of_both_hands_plays_with_its_own_split():
     assert episode.metrics()["f1"] >= 0.75
     goal = env.unwrapped.goal
     due = goal.keys & ~np.any([arrays.skip for arrays in planner.plan.hands], axis=0)
-    assert np.all(planner.fingers[due] >= 0)
-    # A hand's plan leaves out none of the keys it gives its own fingers.
-    for hand, arrays in zip(planner.hands, planner.plan.hands, strict=True):
-        local = planner.fingers - hand.finger_offset
-        mine = goal.keys & (local >= 0) & (local < 5)
-        assert mine.any() and not np.any(mine & arrays.skip), hand.side
+    assert np.all(planner.fingers[due] >= 0)  # one finger (of one hand) for each
 
 
 def test_a_thumb_pressing_past_its_reach_gives_up_depth_not_lining_up():

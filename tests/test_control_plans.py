@@ -36,7 +36,7 @@ def test_a_new_environment_of_the_same_song_reuses_the_plan(monkeypatch):
     assert len(calls) == made and len(cache) == 1
     assert again.goal is not first.goal and goal_digest(again.goal) == goal_digest(first.goal)
     assert again.rehearsed == first.rehearsed and again.plan_kind == first.plan_kind
-    for a, b in zip(first.hands, again.hands, strict=True):
+    for a, b in zip(first.plan.hands, again.plan.hands, strict=True):
         np.testing.assert_array_equal(a.tx_plan, b.tx_plan)
     # Another configuration, another song: planned anew, each kept apart.
     _reset(IKPlanner(PlannerConfig(lazy_m=0.01), cache=cache))

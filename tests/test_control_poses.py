@@ -101,7 +101,7 @@ def test_plans_are_deterministic():
     _, a = _reset(song)
     _, b = _reset(song)
     np.testing.assert_array_equal(a.fingers, b.fingers)
-    for x, y in zip(a.hands, b.hands, strict=True):
+    for x, y in zip(a.plan.hands, b.plan.hands, strict=True):
         for name in ("tx_plan", "pose_plan", "pose_held", "free"):
             np.testing.assert_array_equal(getattr(x, name), getattr(y, name))
 

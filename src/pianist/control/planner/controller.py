@@ -616,7 +616,14 @@ class IKPlanner(BaseController):
         for i, hand in enumerate(self.hands):
             (pose_index, pose), hand_cfg = poses[i], settings[i]
             targets, active, memory = fingertip_targets(
-                self, hand, self.plan.hands[i], pose, self.memories[i], t, hover_end, hand_cfg
+                self,
+                hand,
+                self.plan.hands[i],
+                pose.lift_tips,
+                self.memories[i],
+                t,
+                hover_end,
+                hand_cfg,
             )
             self.memories[i] = memory
             self.finger_states[t, hand.finger_offset : hand.finger_offset + 5] = memory.state

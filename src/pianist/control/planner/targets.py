@@ -4,8 +4,8 @@ Inputs (:func:`fingertip_targets`): the planner's episode data (:class:`PlannerS
 frames and fingering, the keys' press points (88, 3) m, tops (88,) m and press depths (88,)
 m, the simulator state), the hand's indices (:class:`~pianist.control.planner.hand.Hand`),
 its plan (``free``, ``shift_to``, ``skip``: :class:`~pianist.control.planner.plans.HandPlanArrays`),
-the pose it is in (its lifted fingertips ``lift_tips`` (5, 3) m:
-:class:`~pianist.control.planner.postures.HandPose`), and its fingers' memory
+its lifted fingertips ``lift_tips`` (5, 3) m in the pose it is in
+(:class:`~pianist.control.planner.postures.HandPose`), and its fingers' memory
 (:class:`~pianist.control.planner.hand.FingerMemory`).
 
 Output: (5, 3) fingertip targets in m relative to the forearm body, (5,) bool: which
@@ -27,7 +27,6 @@ from pianist.sim import constants as C
 
 if TYPE_CHECKING:
     from pianist.control.planner.plans import HandPlanArrays
-    from pianist.control.planner.postures import HandPose
 
 
 class FingerState(IntEnum):
@@ -54,7 +53,7 @@ def fingertip_targets(
     planner: PlannerState,
     hand: Hand,
     plan: HandPlanArrays,
-    pose: HandPose,
+    lift_tips: np.ndarray,
     memory: FingerMemory,
     now: int,
     hover_end: int,
@@ -67,9 +66,10 @@ def fingertip_targets(
     due at the next frame are pressed already (the servos lag about a frame), except a key
     that is still down and must sound again: it is let up for this step first. Fingers due
     later hover over their keys; the rest take their lifted posture. ``plan``: the hand's
-    plan (``free``, ``shift_to``, ``skip``); ``pose``: the pose it is in (its lifted
-    fingertips); ``hover_end``: the frame (exclusive) up to which fingers hover over keys
-    due later; ``cfg``: this hand's settings (default: the planner's).
+    plan (``free``, ``shift_to``, ``skip``); ``lift_tips`` (5, 3) m: its lifted fingertips
+    relative to the forearm in the pose it is in; ``hover_end``: the frame (exclusive) up
+    to which fingers hover over keys due later; ``cfg``: this hand's settings (default: the
+    planner's).
     """
     cfg = cfg or planner.config
     mem = memory.copy()
@@ -77,7 +77,7 @@ def fingertip_targets(
     radius = C.FINGERTIP_CAPSULE_RADIUS_M
     origin = planner.scratch.xpos[hand.forearm_body]
     real_tips = planner.handle.data.site_xpos[hand.sites]
-    targets = pose.lift_tips + origin
+    targets = lift_tips + origin
     active = np.zeros(FINGERS_PER_HAND, dtype=bool)
     mem.pressing = np.zeros(FINGERS_PER_HAND, dtype=bool)
     let_up = mem.state == FingerState.RESTRIKING  # last step's states
@@ -93,7 +93,7 @@ def fingertip_targets(
         far = active & low & (np.abs(targets[:, 1] - real_tips[:, 1]) > cfg.jump_lift_m)
         mem.state[active] = FingerState.TRAVELLING
         active[far] = False
-        targets[far] = pose.lift_tips[far] + origin
+        targets[far] = lift_tips[far] + origin
         mem.active = active.copy()
         return targets - origin, active, mem
     lead = min(now + cfg.press_lead_frames, goal.num_frames - 1)
@@ -118,7 +118,7 @@ def fingertip_targets(
                 continue
             if plan.free[frame]:
                 # The hand is moving: its fingers stay clear, or they catch on keys.
-                targets[finger] = pose.lift_tips[finger] + origin
+                targets[finger] = lift_tips[finger] + origin
                 mem.state[finger] = FingerState.TRAVELLING
                 continue
             black = C.BLACK_KEY_MASK[key]
@@ -169,7 +169,7 @@ def fingertip_targets(
                 targets[finger, 2] = top + height
                 if cfg.unwedge and mem.stuck[finger] >= cfg.stuck_frames and down:
                     # Wedged below the key's top against its side: up and clear first.
-                    targets[finger] = pose.lift_tips[finger] + origin
+                    targets[finger] = lift_tips[finger] + origin
                 hovering[finger] = True
                 mem.state[finger] = FingerState.HOVERING
     mem.unsounded, pushed = count_unsounded(
