@@ -60,26 +60,26 @@ WHAT_IF_WRIST = (-0.3, 0.2)
 
 #: The plan the default plays on every open-etude-12 piece (its rehearsal chooses it), made
 #: alone: no rehearsal, so no episode is played.
-_PIECE_F1 = PlannerConfig(best_candidates=("piece-f1",))
+_PIECE_F1 = PlannerConfig().with_fields(best_candidates=("piece-f1",))
 _COSTS = HandPlanCosts()
 
 #: Plans whose F1 ``--plan-variants`` reports: the default's, and it with one thing changed.
 PLAN_VARIANTS: dict[str, PlannerConfig] = {
     "piece-f1 (the default's)": _PIECE_F1,
-    "moves take no time": replace(
-        _PIECE_F1, hand_plan=replace(_COSTS, slide_acceleration_m_s2=1e6)
+    "moves take no time": _PIECE_F1.with_fields(
+        hand_plan=replace(_COSTS, slide_acceleration_m_s2=1e6)
     ),
-    "slide 4x as quick (80 m/s^2)": replace(
-        _PIECE_F1, hand_plan=replace(_COSTS, slide_acceleration_m_s2=80.0)
+    "slide 4x as quick (80 m/s^2)": _PIECE_F1.with_fields(
+        hand_plan=replace(_COSTS, slide_acceleration_m_s2=80.0)
     ),
-    "reach_margin 0.15 (0.3)": replace(_PIECE_F1, reach_margin=0.15),
-    "forearm_separation_m 0.15 (0.17)": replace(_PIECE_F1, forearm_separation_m=0.15),
-    "step_f1_move_scale 1 (4)": replace(
-        _PIECE_F1, hand_plan=replace(_COSTS, step_f1_move_scale=1.0)
+    "reach_margin 0.15 (0.3)": _PIECE_F1.with_fields(reach_margin=0.15),
+    "forearm_separation_m 0.15 (0.17)": _PIECE_F1.with_fields(forearm_separation_m=0.15),
+    "step_f1_move_scale 1 (4)": _PIECE_F1.with_fields(
+        hand_plan=replace(_COSTS, step_f1_move_scale=1.0)
     ),
-    "edge_cost 0 (0.25)": replace(_PIECE_F1, hand_plan=replace(_COSTS, edge_cost=0.0)),
-    "split (both hands together)": replace(_PIECE_F1, hand_planning="split"),
-    "piece (key-frames, not step F1)": replace(_PIECE_F1, best_candidates=("piece",)),
+    "edge_cost 0 (0.25)": _PIECE_F1.with_fields(hand_plan=replace(_COSTS, edge_cost=0.0)),
+    "split (both hands together)": _PIECE_F1.with_fields(hand_planning="split"),
+    "piece (key-frames, not step F1)": _PIECE_F1.with_fields(best_candidates=("piece",)),
 }
 
 
@@ -118,7 +118,7 @@ def what_if_row(name: str, physics: str) -> dict:
     song = load_song(name, fingering="auto")
     planners = {
         "straight": _reset(song, physics),
-        "turned": _reset(song, physics, PlannerConfig(wrist_pose=WHAT_IF_WRIST)),
+        "turned": _reset(song, physics, PlannerConfig().with_fields(wrist_pose=WHAT_IF_WRIST)),
     }
     keys = planners["straight"].goal.keys
 

@@ -89,7 +89,7 @@ def lead_in_f1(song: str, physics: str, buffer_s: float) -> float:
 def plan_seconds_per_minute(song: str, physics: str, repeats: int) -> float:
     """Median seconds the whole-piece plans take to make (every candidate, chosen by the
     key-frames each leaves playable, none rehearsed) per minute of the song's music."""
-    config = PlannerConfig(choose_plan="playable")
+    config = PlannerConfig().with_fields(choose_plan="playable")
     warm = IKPlanner(config)
     env = make_env(song, warm, physics=physics)
     env.reset(seed=0)
@@ -127,7 +127,9 @@ def bench_song(song: str, physics: str, repeats: int, compare_tape: bool = False
         rates.append(rate)
         shares.append(share)
         if compare_tape:  # in turns, so that the machine's load weighs on both alike
-            other, rate, _ = _timed_episode(song, physics, PlannerConfig(replay_tape=False))
+            other, rate, _ = _timed_episode(
+                song, physics, PlannerConfig().with_fields(replay_tape=False)
+            )
             if other["f1"] != metrics["f1"]:
                 raise AssertionError(
                     f"{song} {physics}: F1 {metrics['f1']} with the tape, {other['f1']} without"

@@ -34,8 +34,8 @@ from pianist.music import list_songs
 #: plan that counts key-frames too; the chooser before rehearsal, by playable key-frames.
 CHOOSERS = {
     "rehearsal": PlannerConfig(),
-    "rehearsal-3": PlannerConfig(best_candidates=("frame", "piece", "piece-f1")),
-    "playable": PlannerConfig(
+    "rehearsal-3": PlannerConfig().with_fields(best_candidates=("frame", "piece", "piece-f1")),
+    "playable": PlannerConfig().with_fields(
         choose_plan="playable", best_candidates=("frame", "piece-song", "piece")
     ),
 }
@@ -44,7 +44,7 @@ CHOOSERS = {
 def candidate_config(name: str) -> PlannerConfig:
     """The planner that plays only the candidate plan ``name`` (one candidate: no
     rehearsal)."""
-    return PlannerConfig(best_candidates=(name,))
+    return PlannerConfig().with_fields(best_candidates=(name,))
 
 
 def _played(song: str, physics: str, config: PlannerConfig) -> tuple[dict, IKPlanner]:

@@ -53,7 +53,7 @@ def _plan_ceiling(song, physics: str, hand_planning: str) -> float:
     """The share of the piece's due key-frames that the practised plan leaves playable (a
     finger given, within its modelled reach from the planned hand position, not during a
     shift). Practice corrects how the plan is played, not the plan."""
-    planner = IKPlanner(PlannerConfig(hand_planning=hand_planning))
+    planner = IKPlanner(PlannerConfig().with_fields(hand_planning=hand_planning))
     env = make_env(song, planner, physics=physics)
     env.reset(seed=0)
     planner.reset(env, seed=0)

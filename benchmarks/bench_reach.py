@@ -2,7 +2,7 @@
 
 For every song (default: the ``octaves`` suite, pieces at an octave's stretch) and physics
 preset, one episode (seed 0, automatic fingering as ``pianist play``) of the default planner,
-whose whole-piece plan may turn a hand's wrist (``PlannerConfig.reach_poses``), and one of
+whose whole-piece plan may turn a hand's wrist (``PoseConfig.reach_poses``), and one of
 the same planner with the wrist held straight (``reach_poses=()``):
 
 - F1 of each, and their difference;
@@ -26,7 +26,7 @@ from pianist.eval.session import play
 
 from arguments import preset_list, song_list, song_table  # isort: skip  (beside this script)
 
-VARIANTS = {"whole hand": PlannerConfig(), "straight": PlannerConfig(reach_poses=())}
+VARIANTS = {"whole hand": PlannerConfig(), "straight": PlannerConfig().with_fields(reach_poses=())}
 
 
 def row(name: str, physics: str) -> dict[str, float]:

@@ -1,7 +1,7 @@
 """Calibrate the planner's pushed strikes: the velocity a push asks for against the one its
 key sounds, and how late it sounds.
 
-A note softer than ``PlannerConfig.push_below_velocity`` is pushed
+A note softer than ``StrikeConfig.push_below_velocity`` is pushed
 (:mod:`pianist.control.planner.strikes`): its key is brought down along a planned descent at
 the speed its velocity maps to, the finger's depth fed back from the key's angle. This
 script plays calibration songs whose notes alternate between a target velocity and 100 (a
@@ -38,7 +38,7 @@ from arguments import preset_list  # isort: skip  (beside this script)
 
 SONGS = ("c-major-scale-both", "d-major-scale-both", "c-major-chords")
 LOUD = 100
-PUSHED = PlannerConfig(push_below_velocity=90)
+PUSHED = PlannerConfig().with_fields(push_below_velocity=90)
 
 
 def calibration_song(name: str, target: int) -> Song:
@@ -96,8 +96,8 @@ def main() -> None:
         targets = [int(x) for x in args.targets.split(",")]
     except ValueError:
         parser.error(f"--targets takes comma-separated MIDI velocities, not {args.targets!r}")
-    if not all(1 <= t < PUSHED.push_below_velocity for t in targets):
-        parser.error(f"--targets must be from 1 to {PUSHED.push_below_velocity - 1}")
+    if not all(1 <= t < PUSHED.strikes.push_below_velocity for t in targets):
+        parser.error(f"--targets must be from 1 to {PUSHED.strikes.push_below_velocity - 1}")
     header = f"{'preset':9}{'target':>7}{'f1':>7}{'f1 plain':>9}"
     header += "".join(f"{c + ' vel':>11}{c + ' late ms':>15}" for c in ("white", "black"))
     print(header)

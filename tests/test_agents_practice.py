@@ -50,7 +50,9 @@ def test_practice_keeps_the_best_pass_and_its_table_replays_it_exactly(practised
     # Pass 0 is the planner alone with each hand plan; the best played is practised.
     plan = practised.hand_planning
     played = {
-        p: play(SONG, IKPlanner(PlannerConfig(hand_planning=p)), physics="fast").metrics["f1"]
+        p: play(
+            SONG, IKPlanner(PlannerConfig().with_fields(hand_planning=p)), physics="fast"
+        ).metrics["f1"]
         for p in FAST.plans
     }
     assert history[0]["plan_f1"] == pytest.approx(played)
@@ -83,7 +85,7 @@ def test_the_practised_plan_is_kept_with_its_table(tmp_path, practised):
     assert practised.hand_planning == "split"
     save_practice(tmp_path, practised, FAST)
     loaded = CorrectedPlanner.load(tmp_path)
-    assert loaded.config.hand_planning == "split"
+    assert loaded.config.plan.hand_planning == "split"
     assert play(SONG, loaded, physics="fast").metrics["f1"] == practised.f1
     default = CorrectedPlanner(practised.table, physics="fast")
     assert play(SONG, default, physics="fast").metrics["f1"] != practised.f1
@@ -97,7 +99,7 @@ def test_a_table_saved_before_plans_were_chosen_loads_with_the_default(tmp_path,
     with np.load(tmp_path / "practice.npz") as data:
         arrays = {name: data[name] for name in data.files if name != "hand_planning"}
     np.savez(tmp_path / "practice.npz", **arrays)
-    assert CorrectedPlanner.load(tmp_path).config.hand_planning == "best"
+    assert CorrectedPlanner.load(tmp_path).config.plan.hand_planning == "best"
     write_practice_config(tmp_path, "chorale", FAST)
     assert load_practice(tmp_path)[2].hand_planning == "best"
 

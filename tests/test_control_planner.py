@@ -1,7 +1,5 @@
 """The inverse-kinematics planner plays fingered songs with no training."""
 
-import dataclasses
-
 import mujoco
 import numpy as np
 import pytest
@@ -170,7 +168,7 @@ def test_in_the_full_action_space_the_joints_of_the_reduced_hand_alone_are_moved
     assert np.ptp(np.asarray(moving.actions)[:, held], axis=0).max() > 0.1
 
 
-FRAME = PlannerConfig(hand_planning="frame")
+FRAME = PlannerConfig().with_fields(hand_planning="frame")
 
 
 def _step_planner(song, frames, physics="fast", config=None):
@@ -200,7 +198,7 @@ def test_a_chord_does_not_lift_the_hand():
     env, planner, qpos = _step_planner("c-major-chords", 18)
     hand = planner.hands[0]
     height = qpos[8:, hand.tz_qpos]
-    assert np.all(np.abs(height - planner.config.hand_height_m) < 0.005), height
+    assert np.all(np.abs(height - planner.config.forearm.hand_height_m) < 0.005), height
 
 
 def test_a_wide_chord_keeps_every_finger_within_its_reach():
@@ -209,7 +207,7 @@ def test_a_wide_chord_keeps_every_finger_within_its_reach():
     # thumb out of reach of C4 under C-F-A.
     env = PianoEnv("c-major-chords", physics="fast", **ENV_OPTIONS)
     env.reset(seed=0)
-    planner = IKPlanner(PlannerConfig(reach_margin=0.0, hand_planning="frame"))
+    planner = IKPlanner(PlannerConfig().with_fields(reach_margin=0.0, hand_planning="frame"))
     planner.reset(env)
     goal = env.goal
     for hand, arrays, poses in zip(planner.hands, planner.plan.hands, planner.poses, strict=True):
@@ -261,7 +259,7 @@ def test_a_thumb_that_cannot_line_up_at_hover_height_presses_from_where_it_stand
     # key at hover height (it stood there for the whole note before); at key depth it can.
     song = Song((Note(60, 0.5, 1.5, finger=0), Note(84, 2.0, 2.5, finger=0)), name="thumb")
     env = PianoEnv(song, physics="fast", **ENV_OPTIONS)
-    planner = IKPlanner(PlannerConfig(hand_planning="frame"))
+    planner = IKPlanner(PlannerConfig().with_fields(hand_planning="frame"))
     observation, _ = env.reset(seed=0)
     planner.reset(env)
     hand, arrays = planner.hands[0], planner.plan.hands[0]
@@ -287,7 +285,7 @@ def test_a_thumb_that_cannot_line_up_at_hover_height_presses_from_where_it_stand
 def _wrist_swing(feedback, frames=range(31, 40)):
     """Mean |WRJ2| of the right hand over ``frames`` of the C major scale (fast physics)."""
     env = PianoEnv("c-major-scale-right", physics="fast", **ENV_OPTIONS)
-    planner = IKPlanner(PlannerConfig(wrist_feedback=feedback))
+    planner = IKPlanner(PlannerConfig().with_fields(wrist_feedback=feedback))
     observation, _ = env.reset(seed=0)
     planner.reset(env, seed=0)
     qpos = planner.hands[0].wrist[0][1]
@@ -313,7 +311,7 @@ def test_the_hand_stays_put_while_the_fingers_reach():
     env.reset(seed=0)
     moves = {}
     for lazy in (0.0, 0.02):
-        planner = IKPlanner(PlannerConfig(lazy_m=lazy))
+        planner = IKPlanner(PlannerConfig().with_fields(lazy_m=lazy))
         planner.reset(env)
         arrays, home = planner.plan.hands[0], planner.poses[0][0]
         moves[lazy] = int(np.count_nonzero(np.abs(np.diff(arrays.tx_plan)) > 1e-9))
@@ -335,7 +333,7 @@ def test_no_finger_strains_for_a_key_beyond_the_next_shift():
     hovering = {}
     for stop in (True, False):
         env = PianoEnv("c-major-scale-right", physics="fast", **ENV_OPTIONS)
-        planner = IKPlanner(PlannerConfig(hover_stops_at_shift=stop))
+        planner = IKPlanner(PlannerConfig().with_fields(hover_stops_at_shift=stop))
         observation, _ = env.reset(seed=0)
         planner.reset(env, seed=0)
         for _ in range(25):
@@ -360,8 +358,8 @@ def test_a_finger_changing_keys_in_a_chord_change_skims_low():
     assert active[2] and not planner.memories[0].pressing[2]
     top = planner.key_top_z[key] + FINGERTIP_CAPSULE_RADIUS_M
     height = targets[2, 2] + planner.scratch.xpos[hand.forearm_body][2] - top
-    assert height == pytest.approx(planner.config.transfer_height_m, abs=1e-9)
-    assert planner.config.transfer_height_m < planner.config.hover_height_m
+    assert height == pytest.approx(planner.config.fingers.transfer_height_m, abs=1e-9)
+    assert planner.config.fingers.transfer_height_m < planner.config.fingers.hover_height_m
 
 
 @pytest.mark.parametrize(
@@ -373,7 +371,7 @@ def test_a_chord_wider_than_the_hand_keeps_its_outer_voice(low, high, fingers, k
     # note; before, it put the hand halfway and hit neither key but their neighbours.
     notes = (Note(low, 0.5, 1.5, finger=fingers[0]), Note(high, 0.5, 1.5, finger=fingers[1]))
     env = PianoEnv(Song(notes, name="octave"), physics="fast", **ENV_OPTIONS)
-    planner = IKPlanner(PlannerConfig(hand_planning="frame"))
+    planner = IKPlanner(PlannerConfig().with_fields(hand_planning="frame"))
     episode = run_episode(env, planner, seed=0)
     down = np.asarray(episode.active_keys)
     dropped = ({low, high} - {kept}).pop()
@@ -389,7 +387,7 @@ def test_a_chord_wider_than_the_hand_is_shared_with_the_other_hand(low, high, fi
     # whole note. (With reach poses one hand turns its wrist: test_control_poses.py.)
     notes = (Note(low, 0.5, 1.5, finger=fingers[0]), Note(high, 0.5, 1.5, finger=fingers[1]))
     env = PianoEnv(Song(notes, name="octave"), physics="fast", **ENV_OPTIONS)
-    planner = IKPlanner(PlannerConfig(reach_poses=()))
+    planner = IKPlanner(PlannerConfig().with_fields(reach_poses=()))
     episode = run_episode(env, planner, seed=0)
     assert planner.plan_kind[:2] == ("piece", True)
     down = np.asarray(episode.active_keys)
@@ -449,13 +447,13 @@ def test_a_shift_holds_the_keys_before_it_as_long_as_it_can():
     env = PianoEnv("d-major-scale-right", physics="fast", **ENV_OPTIONS)
     held = {}
     for lead in (0, 1):
-        planner = IKPlanner(PlannerConfig(shift_lead_frames=lead))
+        planner = IKPlanner(PlannerConfig().with_fields(shift_lead_frames=lead))
         down = np.asarray(run_episode(env, planner, seed=0).active_keys)
         assert list(np.flatnonzero(planner.plan.hands[0].free[:60])) == [29 - lead, 30 - lead]
         held[lead] = bool(down[28, 66 - 21])
     assert held == {0: True, 1: False}
     with pytest.raises(ValueError, match="shift_lead_frames"):
-        IKPlanner(PlannerConfig(shift_lead_frames=2)).reset(env)
+        IKPlanner(PlannerConfig().with_fields(shift_lead_frames=2)).reset(env)
 
 
 def test_a_rest_between_two_notes_keeps_the_hand_over_its_keys():
@@ -499,7 +497,7 @@ def test_a_shift_leaves_later_when_the_keys_it_holds_outweigh_the_notes_it_moves
     held, free, f1 = {}, {}, {}
     for delay in (0, 8):
         env = PianoEnv(song, physics="fast", **ENV_OPTIONS)
-        planner = IKPlanner(PlannerConfig(shift_delay_max_frames=delay))
+        planner = IKPlanner(PlannerConfig().with_fields(shift_delay_max_frames=delay))
         episode = run_episode(env, planner, seed=0)
         right = planner.plan.hands[0]
         assert planner.plan_kind[0] == "piece" and planner.hands[0].side == "right"
@@ -515,7 +513,7 @@ def test_a_shift_leaves_later_when_the_keys_it_holds_outweigh_the_notes_it_moves
     assert held[8] >= held[0] + 6  # E4 and G4 sound for longer (both keys, 3 frames or more)
     assert f1[8] > f1[0]
     with pytest.raises(ValueError, match="shift_delay_max_frames"):
-        PlannerConfig(shift_delay_max_frames=-1)
+        PlannerConfig().with_fields(shift_delay_max_frames=-1)
 
 
 def test_posture_samples_are_made_once_per_scene_and_reused_exactly(monkeypatch):
@@ -526,7 +524,7 @@ def test_posture_samples_are_made_once_per_scene_and_reused_exactly(monkeypatch)
     sample = module._sample_postures
     monkeypatch.setattr(module, "_sample_postures", lambda *a: calls.append(1) or sample(*a))
     song = Song(tuple(Note(60 + 2 * i, 0.2 * i, 0.2 * i + 0.15, finger=i) for i in range(5)))
-    poses = len(PlannerConfig().hand_poses(has_tz=True))  # each pose has its own samples
+    poses = len(PlannerConfig().poses.hand_poses(has_tz=True))  # each pose has its own samples
     first = _play(song)[1].actions  # samples the postures
     again = _play(song)[1].actions  # a new environment and planner of the same scene
     assert len(calls) == poses and len(module._POSTURES) == poses
@@ -644,7 +642,7 @@ def test_fingers_travel_during_a_jump():
 def test_the_joint_plan_of_both_hands_plays_with_its_own_split():
     # hand_planning="split": each key goes to the hand the joint plan gives it, with a finger
     # of that hand, and the chord song still plays (0.818 measured; 0.927 with "best").
-    planner = IKPlanner(PlannerConfig(hand_planning="split"))
+    planner = IKPlanner(PlannerConfig().with_fields(hand_planning="split"))
     env = make_env("c-major-chords", planner, physics="fast")
     episode = run_episode(env, planner, seed=0)
     assert planner.plan_kind[:2] == ("split", True)
@@ -665,10 +663,10 @@ def test_a_thumb_pressing_past_its_reach_gives_up_depth_not_lining_up():
     assert env.goal.fingers[3, key] == 0
     errors = {}
     for weight in (1.0, 4.0):
-        config = dataclasses.replace(planner.config, thumb_lateral_weight=weight)
+        config = planner.config.with_fields(thumb_lateral_weight=weight)
         for depth in (0.02, 0.03):
             target = planner.key_point[key].copy()
-            target[0] = config.thumb_white_press_x_m
+            target[0] = config.keys.thumb_white_press_x_m
             target[2] = planner.key_top_z[key] - depth
             scratch.qpos[:] = env.data.qpos
             mujoco.mj_kinematics(m, scratch)
@@ -690,7 +688,7 @@ def test_a_thumb_wedged_between_two_keys_comes_free(unwedge):
     # from frame 80.
     env = PianoEnv(load_song("mozart-sonata-k545-allegro"), physics="fast", **ENV_OPTIONS)
     # The whole-piece plan with its own fingering, counting key-frames, as when this was seen.
-    planner = IKPlanner(PlannerConfig(unwedge=unwedge, best_candidates=("piece",)))
+    planner = IKPlanner(PlannerConfig().with_fields(unwedge=unwedge, best_candidates=("piece",)))
     observation, _ = env.reset(seed=0)
     planner.reset(env, seed=0)
     key = 69 - 21
@@ -717,7 +715,7 @@ def test_a_finger_holding_its_key_down_keeps_pressing_though_its_tip_slid(keep_s
     env, planner, _ = _step_planner("d-major-scale-right", frame)
     assert planner.memories[0].pressing[finger]
     assert env.data.qpos[planner.key_qpos[key]] >= planner.key_threshold[key]
-    planner.config = dataclasses.replace(planner.config, keep_sounding=keep_sounding)
+    planner.config = planner.config.with_fields(keep_sounding=keep_sounding)
     planner.key_point[key, 1] += 0.02
     _targets(planner, frame, frame + 5)
     assert planner.memories[0].pressing[finger] == keep_sounding
@@ -736,8 +734,8 @@ def test_a_pressing_finger_pushes_harder_when_the_keys_bend_the_wrist_up(
     # ``reach_bent_wrist_push`` in a reach pose); with the wrist straight, not at all.
     frame, finger = 65, 3
     env, planner, _ = _step_planner("d-major-scale-right", frame)
-    planner.config = dataclasses.replace(
-        planner.config, bent_wrist_push=home_push, reach_bent_wrist_push=reach_push
+    planner.config = planner.config.with_fields(
+        bent_wrist_push=home_push, reach_bent_wrist_push=reach_push
     )
     hand, m, scratch = planner.hands[0], planner.model, planner.scratch
     targets, active = _targets(planner, frame, frame + 5)
@@ -763,9 +761,9 @@ def test_a_re_strike_is_pushed_down_again_from_its_first_step():
     # sound on time than with the servo alone (measured 35 against 31; F1 0.808 / 0.777).
     song = window(load_song("chopin-mazurka-op6-no2"), 3.0, 7.0)
     on_time, f1 = [], []
-    for push in (PlannerConfig().restrike_push_rad, (0.0,) * 5):
+    for push in (PlannerConfig().ik.restrike_push_rad, (0.0,) * 5):
         env = PianoEnv(song, physics="fast", **ENV_OPTIONS)
-        planner = IKPlanner(PlannerConfig(restrike_push_rad=push))
+        planner = IKPlanner(PlannerConfig().with_fields(restrike_push_rad=push))
         episode = run_episode(env, planner, seed=0)
         goal = env.goal.keys
         again = np.zeros_like(goal)
@@ -791,7 +789,7 @@ def _reference_ik(hand, pose, m, scratch, targets, active, cfg):
             angles[f] = pose.lift[f].copy()
         finger.set(scratch, angles[f])
     jacp = np.zeros((3, m.nv))
-    for _ in range(cfg.iterations):
+    for _ in range(cfg.ik.iterations):
         mujoco.mj_kinematics(m, scratch)
         mujoco.mj_comPos(m, scratch)
         origin = scratch.xpos[hand.forearm_body]
@@ -801,10 +799,12 @@ def _reference_ik(hand, pose, m, scratch, targets, active, cfg):
             mujoco.mj_jacSite(m, scratch, jacp, None, finger.site)
             J = finger.jacobian(jacp)
             if f == 0:
-                weights = np.array([1.0, cfg.thumb_lateral_weight, 1.0])
+                weights = np.array([1.0, cfg.ik.thumb_lateral_weight, 1.0])
                 J, error = J * weights[:, None], error * weights
-            A = J.T @ J + (cfg.damping**2 + cfg.rest_weight) * np.eye(finger.dof)
-            step = np.clip(np.linalg.solve(A, J.T @ error), -cfg.step_limit_rad, cfg.step_limit_rad)
+            A = J.T @ J + (cfg.ik.damping**2 + cfg.ik.rest_weight) * np.eye(finger.dof)
+            step = np.clip(
+                np.linalg.solve(A, J.T @ error), -cfg.ik.step_limit_rad, cfg.ik.step_limit_rad
+            )
             angles[f] = np.clip(angles[f] + step, finger.low, finger.high)
             finger.set(scratch, angles[f])
     return np.concatenate([angles[f] for f in range(len(hand.fingers))])

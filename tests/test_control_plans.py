@@ -39,7 +39,7 @@ def test_a_new_environment_of_the_same_song_reuses_the_plan(monkeypatch):
     for a, b in zip(first.plan.hands, again.plan.hands, strict=True):
         np.testing.assert_array_equal(a.tx_plan, b.tx_plan)
     # Another configuration, another song: planned anew, each kept apart.
-    _reset(IKPlanner(PlannerConfig(lazy_m=0.01), cache=cache))
+    _reset(IKPlanner(PlannerConfig().with_fields(lazy_m=0.01), cache=cache))
     _reset(IKPlanner(cache=cache), "twinkle-twinkle")
     assert len(calls) > made and len(cache) == 3
 
@@ -47,17 +47,19 @@ def test_a_new_environment_of_the_same_song_reuses_the_plan(monkeypatch):
 def test_the_cache_keeps_the_latest_plans():
     cache = PlanCache(kept=2)
     for song in ("twinkle-twinkle", SONG, "c-major-chords"):
-        _reset(IKPlanner(PlannerConfig(hand_planning="frame"), cache=cache), song)
+        _reset(IKPlanner(PlannerConfig().with_fields(hand_planning="frame"), cache=cache), song)
     assert len(cache) == 2
-    planner = _reset(IKPlanner(PlannerConfig(hand_planning="frame"), cache=cache), SONG)
+    planner = _reset(
+        IKPlanner(PlannerConfig().with_fields(hand_planning="frame"), cache=cache), SONG
+    )
     assert cache.get(planner.goal, planner.handle.scene.options, planner.config) is not None
     with pytest.raises(ValueError, match="at least 1"):
         PlanCache(kept=0)
 
 
 def test_plans_made_twice_are_the_same_plan():
-    a = _reset(IKPlanner(PlannerConfig(hand_planning="piece"), cache=PlanCache()))
-    b = _reset(IKPlanner(PlannerConfig(hand_planning="piece"), cache=PlanCache()))
+    a = _reset(IKPlanner(PlannerConfig().with_fields(hand_planning="piece"), cache=PlanCache()))
+    b = _reset(IKPlanner(PlannerConfig().with_fields(hand_planning="piece"), cache=PlanCache()))
     plan_a, plan_b = a.plan, b.plan
     assert plan_a.hands[0].tx_path is not plan_b.hands[0].tx_path  # made anew each time
     assert plan_a.same_as(plan_b)

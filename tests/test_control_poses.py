@@ -92,7 +92,7 @@ def test_the_plan_turns_the_wrist_for_a_block_octave_only():
     _, planner = _reset(Song(tuple(melody), name="five"))
     assert all((arrays.pose_plan == 0).all() for arrays in planner.plan.hands)
     # Without reach poses, the straight plan gives the octave's other key to the other hand.
-    _, straight = _reset(_block((60, 72), (0, 4)), PlannerConfig(reach_poses=()))
+    _, straight = _reset(_block((60, 72), (0, 4)), PlannerConfig().with_fields(reach_poses=()))
     assert all((arrays.pose_plan == 0).all() for arrays in straight.plan.hands)
 
 
@@ -189,7 +189,7 @@ def test_a_turned_hand_moves_a_key_at_a_time_with_its_fingers_on_the_keys(reach_
 
     weights = {**TURN_FOR_SPANS, "reach_pose_shift_m": reach_shift}
     costs = HandPlanCosts(objective="step_f1", **weights)
-    config = PlannerConfig(hand_planning="piece", hand_plan=costs)
+    config = PlannerConfig().with_fields(hand_planning="piece", hand_plan=costs)
     _, planner = _reset(get_song("block-octaves"), config)
     for hand, arrays in zip(planner.hands, planner.plan.hands, strict=True):
         turned = arrays.pose_plan > 0
@@ -259,7 +259,7 @@ def test_each_hand_sounds_c_e_g_c_with_the_wrist_flexed_further(physics):
     env = PianoEnv(song, physics=physics, **ENV_OPTIONS)
     # Without the bent-wrist push of reach poses: in this pose it costs C5 (its share of
     # frames 0.73 / 0.78 with it, F1 0.82 / 0.86, fast / faithful).
-    config = PlannerConfig(reach_poses=CHORD_REACH_POSES, reach_bent_wrist_push=0.0)
+    config = PlannerConfig().with_fields(reach_poses=CHORD_REACH_POSES, reach_bent_wrist_push=0.0)
     planner = IKPlanner(config)
     episode = run_episode(env, planner, seed=0)
     down, due = np.asarray(episode.active_keys), np.asarray(episode.goal_keys)
@@ -278,7 +278,10 @@ def test_block_octaves_play_better_turned_than_straight(physics):
     # F1 floors on music at an octave's stretch: block octaves in both hands, held.
     song = _block((60, 72), (0, 4))
     scores = {}
-    for name, config in (("turned", PlannerConfig()), ("straight", PlannerConfig(reach_poses=()))):
+    for name, config in (
+        ("turned", PlannerConfig()),
+        ("straight", PlannerConfig().with_fields(reach_poses=())),
+    ):
         env = PianoEnv(song, physics=physics, **ENV_OPTIONS)
         episode = run_episode(env, IKPlanner(config), seed=0)
         scores[name] = float(
@@ -304,9 +307,9 @@ def test_scales_in_octaves_play_above_a_floor(song, physics):
 
 def test_reach_poses_are_checked():
     with pytest.raises(ValueError, match="reach_poses"):
-        PlannerConfig(reach_poses=((-0.44, 0.28),))  # type: ignore[arg-type]
+        PlannerConfig().with_fields(reach_poses=((-0.44, 0.28),))  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="pose_change_s"):
-        PlannerConfig(pose_change_s=0.0)
+        PlannerConfig().with_fields(pose_change_s=0.0)
 
 
 def test_a_chord_struck_together_is_told_from_one_over_a_held_key():

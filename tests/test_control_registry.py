@@ -157,9 +157,9 @@ def test_refined_puts_the_refiner_in_the_planners_place():
     # The planner's loudness option goes with it, into the refiner's planner.
     spec = refined(PlannerSpec(push_below_velocity=90))
     assert spec == RefineSpec(push_below_velocity=90)
-    assert spec.build().planner.config.push_below_velocity == 90
+    assert spec.build().planner.config.strikes.push_below_velocity == 90
     search = SearchSpec(base="refine", push_below_velocity=70).build()
-    assert search.base.planner.config.push_below_velocity == 70
+    assert search.base.planner.config.strikes.push_below_velocity == 70
     assert refined(RefineSpec(candidates=3)) == RefineSpec(candidates=3)
     assert refined(SearchSpec(segment_steps=5)) == SearchSpec(base="refine", segment_steps=5)
     with pytest.raises(ValueError, match="--refine refines the planner, not --controller mpc"):

@@ -45,7 +45,7 @@ def test_the_plan_that_rehearses_best_is_played_and_scores_as_rehearsed():
     planner = IKPlanner()
     f1 = _episode(planner).metrics()["f1"]
     rehearsed = planner.rehearsed
-    assert set(rehearsed) <= set(PlannerConfig().best_candidates) and len(rehearsed) >= 2
+    assert set(rehearsed) <= set(PlannerConfig().plan.best_candidates) and len(rehearsed) >= 2
     winner = max(rehearsed, key=rehearsed.get)
     # Deterministic physics: the performance scores exactly what its rehearsal scored.
     assert f1 == pytest.approx(rehearsed[winner], abs=1e-12)
@@ -74,19 +74,19 @@ def test_a_plan_that_differs_late_is_rehearsed_from_there_and_scores_as_played_a
     names = ("piece-f1", "piece-f1-turn")
     # No rehearsal given up: each rehearsed F1 is then the plan's, not a bound on it.
     monkeypatch.setattr(planner_controller, "f1_lost", lambda f1, steps: np.inf)
-    planner = IKPlanner(PlannerConfig(best_candidates=names))
+    planner = IKPlanner(PlannerConfig().with_fields(best_candidates=names))
     f1 = _episode(planner, song).metrics()["f1"]
     assert set(planner.rehearsed) == set(names)
     later = max(names, key=planner.rehearsed_from.get)
     assert planner.rehearsed_from[later] > 50  # the melody's 96 frames, less a margin
     for name in names:
-        alone = _episode(IKPlanner(PlannerConfig(best_candidates=(name,))), song)
+        alone = _episode(IKPlanner(PlannerConfig().with_fields(best_candidates=(name,))), song)
         assert planner.rehearsed[name] == pytest.approx(alone.metrics()["f1"], abs=1e-12)
     assert f1 == pytest.approx(max(planner.rehearsed.values()), abs=1e-12)
 
 
 def test_choosing_by_playable_key_frames_needs_no_rehearsal():
-    planner = IKPlanner(PlannerConfig(choose_plan="playable"))
+    planner = IKPlanner(PlannerConfig().with_fields(choose_plan="playable"))
     _episode(planner)
     assert planner.rehearsed == {}
 
@@ -110,7 +110,7 @@ def test_the_replayed_performance_is_the_live_one_on_and_off_the_rehearsed_path(
 
 
 def test_a_rehearsal_that_cannot_win_is_given_up_with_a_bound():
-    planner = IKPlanner(PlannerConfig(hand_planning="piece"))
+    planner = IKPlanner(PlannerConfig().with_fields(hand_planning="piece"))
     env = make_env(SONG, planner, physics="fast")
     env.reset(seed=0)
     planner.reset(env, seed=0)
@@ -131,6 +131,6 @@ def test_a_rehearsal_that_cannot_win_is_given_up_with_a_bound():
 
 def test_unknown_plan_candidates_are_refused():
     with pytest.raises(ValueError, match="best_candidates"):
-        PlannerConfig(best_candidates=("frame", "nope"))
+        PlannerConfig().with_fields(best_candidates=("frame", "nope"))
     with pytest.raises(ValueError, match="best_candidates"):
-        PlannerConfig(best_candidates=())
+        PlannerConfig().with_fields(best_candidates=())

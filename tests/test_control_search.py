@@ -1,6 +1,5 @@
 """The segment search: per segment, the execution variant that plays it best on a fork."""
 
-import dataclasses
 import json
 
 import numpy as np
@@ -150,7 +149,7 @@ def test_one_hands_settings_change_only_that_hands_commands():
         envs.append(env)
     left = [h.side for h in pushed.hands].index("left")
     settings = [None, None]
-    settings[left] = dataclasses.replace(pushed.config, **VARIANTS["finger-push"])
+    settings[left] = pushed.config.with_fields(**VARIANTS["finger-push"])
     pushed.set_hand_settings(settings)
     left_dims = pushed.hands[left].finger_actuators
     for _ in range(40):

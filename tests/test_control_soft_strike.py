@@ -20,7 +20,7 @@ from pianist.media.results import played_dynamics
 from pianist.music import GoalFrames, load_song
 from pianist.music.pitch import NUM_KEYS
 
-PUSHED = PlannerConfig(push_below_velocity=90)
+PUSHED = PlannerConfig().with_fields(push_below_velocity=90)
 C4, E4 = 39, 43  # key indices (white keys)
 
 
@@ -94,7 +94,7 @@ def test_pushed_notes_sound_near_the_velocity_asked_for(physics):
     pairs = played_dynamics(result)[2]
     score = np.array([s.velocity for _, s in pairs])
     performed = np.array([p.velocity for p, _ in pairs])
-    pushed = score < PUSHED.push_below_velocity
+    pushed = score < PUSHED.strikes.push_below_velocity
     assert pushed.sum() >= 10
     assert np.median(np.abs(performed[pushed] - score[pushed])) <= 20
     plain = play("crescendo-scale", IKPlanner(), physics=physics, seed=0)

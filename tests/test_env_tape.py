@@ -25,7 +25,7 @@ class _Watch(BaseController):
     ``advance_physics``, ``finish_step``) with the planner's action."""
 
     def __init__(self, tape: bool, nudge_at: int = -1, look_at: int = -1, look: str = "") -> None:
-        self.planner = IKPlanner(PlannerConfig(replay_tape=tape))
+        self.planner = IKPlanner(PlannerConfig().with_fields(replay_tape=tape))
         self.nudge_at, self.look_at, self.look, self.steps = nudge_at, look_at, look, 0
         self.seen, self.observations = None, []
 
@@ -100,7 +100,7 @@ def test_the_tape_spares_the_performance_its_physics_also_in_a_second_episode(mo
     original = PianoEnv.advance_physics
     for tape in (True, False):
         forget_plans()
-        planner = IKPlanner(PlannerConfig(replay_tape=tape))
+        planner = IKPlanner(PlannerConfig().with_fields(replay_tape=tape))
         env = make_env(SONG, planner, physics="fast")
         base, count = env.unwrapped, [0]
 
@@ -209,7 +209,7 @@ def test_the_segment_search_hands_its_winners_look_ahead_to_the_environment(monk
     episodes, home_steps = {}, {}
     for tape in (True, False):
         forget_plans()
-        search = SegmentSearch(IKPlanner(PlannerConfig(replay_tape=tape)))
+        search = SegmentSearch(IKPlanner(PlannerConfig().with_fields(replay_tape=tape)))
         env = make_env("c-major-chords", search, physics="fast")
         base, count = env.unwrapped, [0]
 

@@ -44,7 +44,7 @@ import gymnasium as gym
 import numpy as np
 
 from pianist.agents.rundir import CONFIG, LOG
-from pianist.control.planner import IKPlanner, PlannerConfig
+from pianist.control.planner import IKPlanner, PlanConfig, PlannerConfig
 from pianist.control.refine import RefineOptions, Refiner
 from pianist.env.handle import control_handle
 from pianist.files import write_bytes_atomic, write_json_atomic
@@ -123,7 +123,7 @@ class PracticeConfig:
     """The look-aheads, taken in turn: pass p, worker w uses the
     ``((p - 1) * workers + w)``-th (cycling)."""
     plans: tuple[str, ...] = PLANS
-    """The planner's hand plans (``PlannerConfig.hand_planning``) the practice starts by
+    """The planner's hand plans (``PlanConfig.hand_planning``) the practice starts by
     playing once each; it practises the one that plays best (the first of equals)."""
 
     def __post_init__(self) -> None:
@@ -133,7 +133,7 @@ class PracticeConfig:
             raise ValueError(f"practice needs at least 1 worker, not {self.workers}")
         if not self.schedule:
             raise ValueError("practice needs at least one look-ahead in its schedule")
-        known = get_args(get_type_hints(PlannerConfig)["hand_planning"])
+        known = get_args(get_type_hints(PlanConfig)["hand_planning"])
         if not self.plans or any(plan not in known for plan in self.plans):
             raise ValueError(
                 f"practice plans must be some of {', '.join(known)}, not {list(self.plans)}"
@@ -178,7 +178,7 @@ class CorrectedPlanner(IKPlanner):
         physics: str | None = None,
         hand_planning: str = "best",
     ) -> None:
-        super().__init__(PlannerConfig(hand_planning=hand_planning))  # type: ignore[arg-type]
+        super().__init__(PlannerConfig().with_fields(hand_planning=hand_planning))
         table = np.asarray(table, dtype=np.float64)
         if table.ndim != 2:
             raise ValueError(f"a correction table is (T, A), not {table.shape}")
@@ -249,7 +249,7 @@ class CorrectedPlanner(IKPlanner):
             "practice": {
                 "steps": int(self.table.shape[0]),
                 "physics": self.physics,
-                "hand_planning": self.config.hand_planning,
+                "hand_planning": self.config.plan.hand_planning,
             }
         }
 
@@ -415,7 +415,7 @@ def _plan_trial(song: Song, physics: str, plan: str) -> tuple[dict[str, float], 
     episode's steps and action size, and the goal's fingerprint."""
     from pianist.eval.session import play
 
-    config = PlannerConfig(hand_planning=plan)  # type: ignore[arg-type]
+    config = PlannerConfig().with_fields(hand_planning=plan)
     played = play(song, IKPlanner(config), physics=physics, seed=0)
     goal = played.goal
     steps, dims = played.episode.actions.shape

@@ -29,7 +29,6 @@ Stages, each a method: :meth:`SegmentSearch._choose` (try each candidate with
 
 from __future__ import annotations
 
-import dataclasses
 import time
 from dataclasses import asdict
 from typing import TYPE_CHECKING, Any, Protocol, cast
@@ -86,7 +85,7 @@ class SegmentSearch(BaseController):
         self.look = LookAhead(self.handle)
         self.planner = _planner(self.base)
         own = self.planner.config
-        self.configs = [dataclasses.replace(own, **VARIANTS[n]) for n in self.options.variants]
+        self.configs = [own.with_fields(**VARIANTS[n]) for n in self.options.variants]
         hands = self.planner.hands
         # Whose a key is: the hand of its planned finger (0-9 -> index into hands), and
         # each fingertip's hand (for a wrong key, the hand of the nearest fingertip).
@@ -108,7 +107,7 @@ class SegmentSearch(BaseController):
         self._seconds = 0.0
         # Each segment's candidates' recorded look-aheads, the winner's played back by the
         # environment (the planner's ``replay_tape``), and the segment's start state.
-        self._replay_tape = self.planner.config.replay_tape
+        self._replay_tape = self.planner.config.plan.replay_tape
         self._tapes: list[StepTape | None] = []
         self._state: EnvState | None = None
 

@@ -29,7 +29,7 @@ class PlannerSpec(ControllerSpec):
 
     push_below_velocity: int = 0
     """Play the score's dynamics: notes softer than this MIDI velocity are pushed down at the
-    speed their velocity maps to (``PlannerConfig.push_below_velocity``; 90 plays the dynamics
+    speed their velocity maps to (``StrikeConfig.push_below_velocity``; 90 plays the dynamics
     suite's soft notes, at an F1 cost of ~0.03 that ``refine`` wins back; 0: every note
     struck at full speed)."""
 
@@ -55,7 +55,7 @@ def _planner(push_below_velocity: int) -> IKPlanner:
     """The planner, pushing notes softer than ``push_below_velocity``."""
     from pianist.control.planner import IKPlanner, PlannerConfig
 
-    return IKPlanner(PlannerConfig(push_below_velocity=push_below_velocity))
+    return IKPlanner(PlannerConfig().with_fields(push_below_velocity=push_below_velocity))
 
 
 @dataclass(frozen=True)

@@ -62,7 +62,7 @@ from pianist.sim import constants as C
 #: physics ahead, and three rehearsals at reset would slow it from ~14x real time to ~5x),
 #: and with the wrist straight throughout (no reach poses): the policy commands no wrist
 #: pose, and was trained on plans for a straight hand.
-PLAN_FINGERING_CONFIG = PlannerConfig(
+PLAN_FINGERING_CONFIG = PlannerConfig().with_fields(
     choose_plan="playable", best_candidates=("frame", "piece-song", "piece"), reach_poses=()
 )
 
@@ -288,7 +288,7 @@ class FingertipController(BaseController):
             command_height(ctrl, data, hand, home.raise_m, cfg)
             bent_up.append(set_wrist(scratch, ctrl, hand, home.wrist, home.ty, cfg))
             # As the planner: aim from where the moving forearm will be a little later.
-            scratch.qpos[hand.tx_qpos] += cfg.forearm_lead_s * data.qvel[hand.tx_dof]
+            scratch.qpos[hand.tx_qpos] += cfg.forearm.forearm_lead_s * data.qvel[hand.tx_dof]
         mujoco.mj_kinematics(m, scratch)
         key_down = data.qpos[p.key_qpos] >= p.key_threshold
         for i, (hand, o) in enumerate(zip(p.hands, out, strict=True)):
@@ -319,7 +319,7 @@ class FingertipController(BaseController):
             self.last_modes[off : off + FINGERS] = np.where(active, modes, Mode.LIFT)
         action = np.empty(m.nu + 1)
         action[:-1] = handle.ctrl_to_action(ctrl)
-        press_frame = min(t + cfg.press_lead_frames, T - 1)
+        press_frame = min(t + cfg.fingers.press_lead_frames, T - 1)
         action[-1] = 1.0 if p.goal.sustain[press_frame] else -1.0
         return action.astype(np.float32)
 
@@ -349,13 +349,13 @@ class FingertipController(BaseController):
             point = press_point(p, key, f)
             top = p.key_top_z[key] + radius
             if modes[f] == Mode.PRESS:
-                extra = cfg.thumb_extra_depth_m if f == 0 else 0.0
+                extra = cfg.keys.thumb_extra_depth_m if f == 0 else 0.0
                 point[2] = top - p.key_depth[key] - extra
                 pressed[f] = key
             elif modes[f] == Mode.RESTRIKE:
-                point[2] = top + cfg.release_height_m
+                point[2] = top + cfg.fingers.release_height_m
             else:
-                point[2] = top + cfg.hover_height_m
+                point[2] = top + cfg.fingers.hover_height_m
             targets[f] = point
             active[f] = True
         return targets - origin, active, pressed

@@ -49,7 +49,7 @@ def expert_config(fingering: Fingering = "plan") -> PlannerConfig:
     hand). The plan is chosen without rehearsal (:data:`PLAN_FINGERING_CONFIG`)."""
     if fingering == "plan":
         return PLAN_FINGERING_CONFIG
-    return PlannerConfig(hand_planning="piece", refinger=False, reach_poses=())
+    return PlannerConfig().with_fields(hand_planning="piece", refinger=False, reach_poses=())
 
 
 @dataclass(frozen=True)

@@ -6,7 +6,7 @@ their keys, and stays while they still do) or over the whole piece at once
 (:mod:`pianist.control.planner.hand_plan`: a dynamic programme that also chooses the fingers the
 Shadow hand can actually span, and shares keys one hand cannot reach with the other, counting
 either lost key-frames or the per-step F1 the metric scores), and keeps the plan that plays
-best when each is rehearsed once on a copy of the environment (``PlannerConfig.hand_planning``,
+best when each is rehearsed once on a copy of the environment (``PlanConfig.hand_planning``,
 ``choose_plan``); the performance replays the winner's rehearsal while it stays on its path.
 Then each control step it
 
@@ -51,8 +51,31 @@ pose, its plan's arrays and its fingers' memory; none keeps state of its own:
   step (step 4).
 """
 
-from pianist.control.planner.config import ENV_OPTIONS, PlannerConfig
+from pianist.control.planner.config import (
+    ENV_OPTIONS,
+    FingerConfig,
+    ForearmConfig,
+    IKConfig,
+    KeyPressConfig,
+    PlanConfig,
+    PlannerConfig,
+    PoseConfig,
+    StrikeConfig,
+)
 from pianist.control.planner.controller import IKPlanner, forget_plans
 from pianist.control.planner.targets import FingerState
 
-__all__ = ["ENV_OPTIONS", "FingerState", "IKPlanner", "PlannerConfig", "forget_plans"]
+__all__ = [
+    "ENV_OPTIONS",
+    "FingerConfig",
+    "FingerState",
+    "ForearmConfig",
+    "IKConfig",
+    "IKPlanner",
+    "KeyPressConfig",
+    "PlanConfig",
+    "PlannerConfig",
+    "PoseConfig",
+    "StrikeConfig",
+    "forget_plans",
+]

@@ -1,7 +1,9 @@
 """Tuning of the planner, the environment it plays in, and what its stages share.
 
-- :class:`PlannerConfig`: every setting, lengths in m, times in s, angles in rad, grouped by
-  the stage that reads it. Frozen and hashable: it keys the posture and plan caches.
+- :class:`PlannerConfig`: every setting, lengths in m, times in s, angles in rad, in one
+  group per stage (:class:`KeyPressConfig`, :class:`PoseConfig`, :class:`ForearmConfig`,
+  :class:`FingerConfig`, :class:`StrikeConfig`, :class:`PlanConfig`, :class:`IKConfig`).
+  Frozen and hashable: it keys the posture and plan caches.
 - :data:`ENV_OPTIONS`: the :class:`pianist.env.PianoEnv` options the planner plays best with.
 - :class:`PlannerState`: what the per-hand stages (forearm, targets) read of the planner
   during an episode, with shapes and units.
@@ -10,6 +12,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Literal, NamedTuple, Protocol
 
@@ -66,10 +69,9 @@ PLAN_CANDIDATES: dict[str, PlanKind] = {
 
 
 @dataclass(frozen=True)
-class PlannerConfig:
-    """Tuning of :class:`IKPlanner`; lengths in m, times in s, angles in rad."""
+class KeyPressConfig:
+    """Where on each key a finger presses, and how deep (the controller's key points)."""
 
-    # ---- Keys and press points: where on each key a finger presses, and how deep.
     white_press_x_m: float = 0.045
     """Where along a white key (x from its centre, towards the player) a finger presses it,
     in front of the black keys."""
@@ -85,16 +87,14 @@ class PlannerConfig:
     thumb_extra_depth_m: float = 0.02
     """Added to the thumb's press depth: its servos are weak for the force a key needs."""
 
-    # ---- Forearm and shifts (forearm.py): where the hand goes, how it moves, height, wrist.
-    skip_out_of_reach: bool = True
-    """A chord struck together that no hand position covers (an octave is beyond the Shadow
-    hand's span) is played without the keys that cannot be reached along with the most
-    others, keeping the outer voice (the bass in the left hand, the top in the right); its
-    fingers stay off. Otherwise the hand goes halfway and usually reaches none of them."""
-    lazy_m: float = 0.02
-    """The hand stays where it is for the next notes if every finger still reaches its key
-    from there and it is at most this far from where those notes would put it (0: always
-    re-centre). Every move costs the held keys frames; scales gain most."""
+
+@dataclass(frozen=True)
+class PoseConfig:
+    """The hand's poses and the posture samples each is made of (postures.py): the wrist's
+    angles, the reach read from the samples, the lifted posture."""
+
+    samples: int = 4000
+    """Sampled postures per finger for the nearest-posture start of the IK."""
     reach_margin: float = 0.3
     """Part of a finger's sampled reach (across the keys) left unused at each end when a chord
     forces a finger away from its resting place: a finger at the edge of its reach slips."""
@@ -106,6 +106,68 @@ class PlannerConfig:
     """How far the thumb presses to the left (right hand; mirrored for the left) of the
     index finger's rest position: the thumb, without its rotation joint, reaches key depth
     only under the side of the palm."""
+    lift_height_m: float = 0.035
+    """Clearance above the white keys of a finger that is not due."""
+    wrist_pose: tuple[float, float] = (0.0, 0.0)
+    """WRJ2 and WRJ1, held constant, when the forearm has its height slide."""
+    wrist_pose_without_tz: tuple[float, float] = (0.0, 0.25)
+    """The same without it: the wrist flexed, else the fingers cannot reach a key's bottom
+    from the home height."""
+    reach_poses: tuple[tuple[float, float, float, float], ...] = ((-0.44, 0.28, 0.0, 0.0075),)
+    """Hand poses besides the home one (``wrist_pose``, ``ty`` 0, not raised) that the
+    whole-piece plan may put a hand in, each (WRJ2 rad, WRJ1 rad, forearm ty m, forearm
+    raised m above ``hand_height_m``). The default turns the wrist towards the thumb and
+    flexes it: the thumb's lowest white key to the little finger's highest spans 0.176 m,
+    an octave (0.1645 m) and more, against 0.129 m straight. The 7.5 mm raise lets a
+    little finger at the edge of that reach hover over its key instead of pressing the one
+    below it.
+    Each pose has its own posture samples and reach; the plan changes pose with the
+    fingers lifted (``pose_change_s``; its weights in :class:`HandPlanCosts`). Empty: the
+    wrist stays at its home pose throughout."""
+    pose_change_s: float = 0.15
+    """How long a change of pose takes: the wrist's servos (kp 10 and 8) turn it by 0.44 and
+    0.28 rad to within 0.015 rad in 3 control steps of 0.05 s, in both physics presets."""
+    wrist_feedback: tuple[float, float] = (2.0, 0.0)
+    """Gains (WRJ2, WRJ1) of the wrist commands on how far each joint is off its pose. A
+    forearm move swings the hand sideways on its soft wrist servo (kp 10): left alone, WRJ2
+    is still ~0.04 rad off (4 mm at the fingertips) a step after a shift and then drifts a
+    few mm, enough to land a finger beside its key; with the feedback it is back within
+    ~0.01 rad. (Stiffening the flexion WRJ1 the same way leaves the thumb too high to sound
+    its key.)"""
+
+    def hand_poses(self, has_tz: bool) -> tuple[tuple[float, float, float, float], ...]:
+        """Every pose a hand may take, (WRJ2 rad, WRJ1 rad, ty m, raised m): the home pose first
+        (``wrist_pose``, or ``wrist_pose_without_tz`` in a scene without the height slide,
+        where the reach poses are not used), then ``reach_poses``."""
+        if not has_tz:
+            return ((*self.wrist_pose_without_tz, 0.0, 0.0),)
+        return ((*self.wrist_pose, 0.0, 0.0), *self.reach_poses)
+
+    def __post_init__(self) -> None:
+        for pose in self.reach_poses:
+            if len(pose) != 4 or not all(np.isfinite(v) for v in pose):
+                raise ValueError(
+                    "each of reach_poses must be (WRJ2 rad, WRJ1 rad, ty m, raised m), "
+                    f"not {pose!r}"
+                )
+        if not self.pose_change_s > 0:
+            raise ValueError(f"pose_change_s must be > 0, not {self.pose_change_s}")
+
+
+@dataclass(frozen=True)
+class ForearmConfig:
+    """Where the forearm goes and how its slides move (forearm.py): the frame-by-frame plan,
+    shifts, the playing height."""
+
+    skip_out_of_reach: bool = True
+    """A chord struck together that no hand position covers (an octave is beyond the Shadow
+    hand's span) is played without the keys that cannot be reached along with the most
+    others, keeping the outer voice (the bass in the left hand, the top in the right); its
+    fingers stay off. Otherwise the hand goes halfway and usually reaches none of them."""
+    lazy_m: float = 0.02
+    """The hand stays where it is for the next notes if every finger still reaches its key
+    from there and it is at most this far from where those notes would put it (0: always
+    re-centre). Every move costs the held keys frames; scales gain most."""
     forearm_separation_m: float = 0.17
     """Closest the two forearm roots may come along the keyboard (they touch below ~0.15)."""
     forearm_move_s: float = 0.05
@@ -135,34 +197,19 @@ class PlannerConfig:
     """Height command of the forearm's ``tz`` slide (when the scene has one)."""
     height_feedback: float = 3.0
     """Gain of the forearm height command on how far the hand has risen above its height."""
-    wrist_pose: tuple[float, float] = (0.0, 0.0)
-    """WRJ2 and WRJ1, held constant, when the forearm has its height slide."""
-    wrist_pose_without_tz: tuple[float, float] = (0.0, 0.25)
-    """The same without it: the wrist flexed, else the fingers cannot reach a key's bottom
-    from the home height."""
-    reach_poses: tuple[tuple[float, float, float, float], ...] = ((-0.44, 0.28, 0.0, 0.0075),)
-    """Hand poses besides the home one (``wrist_pose``, ``ty`` 0, not raised) that the
-    whole-piece plan may put a hand in, each (WRJ2 rad, WRJ1 rad, forearm ty m, forearm
-    raised m above ``hand_height_m``). The default turns the wrist towards the thumb and
-    flexes it: the thumb's lowest white key to the little finger's highest spans 0.176 m,
-    an octave (0.1645 m) and more, against 0.129 m straight. The 7.5 mm raise lets a
-    little finger at the edge of that reach hover over its key instead of pressing the one
-    below it.
-    Each pose has its own posture samples and reach; the plan changes pose with the
-    fingers lifted (``pose_change_s``; its weights in :class:`HandPlanCosts`). Empty: the
-    wrist stays at its home pose, the planner as before reach poses."""
-    pose_change_s: float = 0.15
-    """How long a change of pose takes: the wrist's servos (kp 10 and 8) turn it by 0.44 and
-    0.28 rad to within 0.015 rad in 3 control steps of 0.05 s, in both physics presets."""
-    wrist_feedback: tuple[float, float] = (2.0, 0.0)
-    """Gains (WRJ2, WRJ1) of the wrist commands on how far each joint is off its pose. A
-    forearm move swings the hand sideways on its soft wrist servo (kp 10): left alone, WRJ2
-    is still ~0.04 rad off (4 mm at the fingertips) a step after a shift and then drifts a
-    few mm, enough to land a finger beside its key; with the feedback it is back within
-    ~0.01 rad. (Stiffening the flexion WRJ1 the same way leaves the thumb too high to sound
-    its key.)"""
 
-    # ---- Fingers' press and hover decisions (targets.py): press, hover or lift, how high.
+    def __post_init__(self) -> None:
+        if self.shift_delay_max_frames < 0 or self.shift_delay_cost < 0:
+            raise ValueError(
+                "shift_delay_max_frames and shift_delay_cost must be >= 0, not "
+                f"{self.shift_delay_max_frames} and {self.shift_delay_cost}"
+            )
+
+
+@dataclass(frozen=True)
+class FingerConfig:
+    """Each finger's press, hover and lift decisions every step (targets.py)."""
+
     press_lead_frames: int = 1
     """Frames ahead of the scored frame whose keys the fingers go for (servo lag)."""
     hover_lead_s: float = 0.25
@@ -175,41 +222,12 @@ class PlannerConfig:
     """Clearance above the key top of a finger going straight from one key to the next (a
     chord change), lower than ``hover_height_m``: the key it leaves rises slowly and holds
     it by friction, so it lands ~1 step sooner from this low path."""
-    lift_height_m: float = 0.035
-    """Clearance above the white keys of a finger that is not due."""
-
-    # ---- Loudness (strikes.py): how fast each key is struck, from its note's velocity.
-    push_below_velocity: int = 0
-    """Notes softer than this MIDI velocity are *pushed* (:mod:`strikes`): their key is
-    brought down along a planned descent at the speed their velocity maps to, the finger's
-    depth fed back from the key's angle. 0: none; in a song of one velocity throughout none
-    is pushed. Louder notes are struck at the servo's full speed."""
-    push_speed_scale: float = 1.0
-    """The key speeds a push plans, as a share of those the velocities map to (its
-    calibration, ``benchmarks/calibrate_strikes.py``)."""
-    push_breakaway_share: tuple[float, float] = (0.68, 0.5)
-    """The share of its key's press depth a push starts from, white and black keys: a finger
-    resting on a white key starts moving it only at ~70 % of the press depth (18 mm of 25),
-    on a black key at ~50 % (of 45 mm; from 0.68 a black key went down within a step)."""
-    push_gain: float = 1.0
-    """m of depth a push adds per m of its press point's drop still missing to the planned
-    angle at the step's end."""
-    push_lag_frames: int = 0
-    """Frames before its note's frame a pushed key should sound (the servo's lag)."""
-    push_grace_frames: int = 2
-    """Steps after its planned sounding that a pushed note's finger is still not pushed
-    harder for not sounding its key (``unsounded_push_rad``, ``restrike_push_rad``)."""
-    push_rest_m: float = -0.008
-    """Height above the key top a finger waiting for its push is sent: below it, as the
-    finger's servo falls ~8 mm short of a target above the keys, so that the finger rests on
-    the key and the key goes down from its push, not from its fall."""
     align_tolerance_m: float = 0.009
     """How close (across the keys) to a white key's press point a finger must be before it
     presses: a finger that lands beside its key sticks to the neighbour by friction."""
     black_align_tolerance_m: float = 0.008
-    """The same for a black key. (Half the white one, 4.5 mm, held a finger back for a frame
-    while the hand was still settling from a move: every black key of the D major scale
-    sounded a frame late.)"""
+    """The same for a black key: not tighter, as a finger still settling from a move is then
+    held back a frame (at 4.5 mm every black key of the D major scale sounded late)."""
     align_along_m: float = 0.02
     """How far behind the press point (x) a finger other than the thumb may be and press a
     white key (further back it would land on a black key). Along a black key there is no
@@ -251,7 +269,48 @@ class PlannerConfig:
     are out of reach from here, and a finger (the thumb above all) that strains towards one
     dips onto the keys on its way."""
 
-    # ---- Plan choice (controller.py): frame by frame or the whole piece, whose fingering.
+
+@dataclass(frozen=True)
+class StrikeConfig:
+    """How fast each key is struck, from its note's velocity (strikes.py)."""
+
+    push_below_velocity: int = 0
+    """Notes softer than this MIDI velocity are *pushed* (:mod:`strikes`): their key is
+    brought down along a planned descent at the speed their velocity maps to, the finger's
+    depth fed back from the key's angle. 0: none; in a song of one velocity throughout none
+    is pushed. Louder notes are struck at the servo's full speed."""
+    push_speed_scale: float = 1.0
+    """The key speeds a push plans, as a share of those the velocities map to (its
+    calibration, ``benchmarks/calibrate_strikes.py``)."""
+    push_breakaway_share: tuple[float, float] = (0.68, 0.5)
+    """The share of its key's press depth a push starts from, white and black keys: a finger
+    resting on a white key starts moving it only at ~70 % of the press depth (18 mm of 25),
+    on a black key at ~50 % (of 45 mm; from 0.68 a black key went down within a step)."""
+    push_gain: float = 1.0
+    """m of depth a push adds per m of its press point's drop still missing to the planned
+    angle at the step's end."""
+    push_lag_frames: int = 0
+    """Frames before its note's frame a pushed key should sound (the servo's lag)."""
+    push_grace_frames: int = 2
+    """Steps after its planned sounding that a pushed note's finger is still not pushed
+    harder for not sounding its key (``unsounded_push_rad``, ``restrike_push_rad``)."""
+    push_rest_m: float = -0.008
+    """Height above the key top a finger waiting for its push is sent: below it, as the
+    finger's servo falls ~8 mm short of a target above the keys, so that the finger rests on
+    the key and the key goes down from its push, not from its fall."""
+
+    def __post_init__(self) -> None:
+        if not 0 <= self.push_below_velocity <= 128:
+            raise ValueError(
+                "push_below_velocity must be a MIDI velocity from 0 (no pushes) to 128, "
+                f"not {self.push_below_velocity}"
+            )
+
+
+@dataclass(frozen=True)
+class PlanConfig:
+    """Which hand plan is made and how one is chosen (controller.py, hand_plan.py, coverage.py)."""
+
     hand_planning: Literal["frame", "piece", "split", "best"] = "best"
     """How the hand positions are planned: ``frame`` by frame with the song's fingering,
     staying put within ``lazy_m``; over the whole ``piece``
@@ -305,11 +364,25 @@ class PlannerConfig:
     spans more than the Shadow hand, whose fingers other than the thumb each reach about one
     white key from a given hand position."""
 
-    # ---- IK (postures.py, ik.py): sampled start postures, damped least squares, the push.
-    samples: int = 4000
-    """Sampled postures per finger for the nearest-posture start of the IK."""
+    def __post_init__(self) -> None:
+        unknown = [name for name in self.best_candidates if name not in PLAN_CANDIDATES]
+        if not self.best_candidates or unknown:
+            raise ValueError(
+                f"best_candidates must be some of {', '.join(PLAN_CANDIDATES)}, "
+                f"not {list(self.best_candidates)}"
+            )
+
+
+@dataclass(frozen=True)
+class IKConfig:
+    """Each finger's inverse kinematics and the pushes after it (ik.py)."""
+
     iterations: int = 3
+    """Damped least-squares steps from the nearest sampled posture: the samples start each
+    finger within a few mm of its target, and each step costs a kinematics pass per hand."""
     damping: float = 0.01
+    """The steps' damping (m; its square is added to the normal equations' diagonal): a
+    target out of reach makes small steps along the boundary instead of wild ones."""
     rest_weight: float = 1e-4
     """Pull towards the sampled start posture (per rad^2, against tip error in m^2)."""
     thumb_lateral_weight: float = 4.0
@@ -347,12 +420,35 @@ class PlannerConfig:
     """Added for a finger that has pressed its key for ``unsounded_steps`` without sounding
     it: resting on the key's top, too weak to push it down (the little finger above all)."""
     unsounded_steps: int = 2
+    """Control steps a finger presses its key without it sounding before it is pushed harder
+    (``unsounded_push_rad``): a key going down normally sounds within one or two."""
     restrike_push_rad: tuple[float, float, float, float, float] = (0.0, 0.3, 0.3, 0.3, 0.3)
     """Extra push (thumb to little finger) of a finger pressing again, at the first step, the
     key it let up the step before (a re-strike: two notes of one key a frame apart). The key
     has that one step to go down again, and from where the finger rose (a median 7-12 mm
     above the key) the servo alone sounds it late. Not the thumb: pushed, it sounds the key
     beside it."""
+    unsounded_latch: bool = True
+    """Keep the push for the rest of the key's press once given (the key sounds only in the
+    last 0.5 degrees of its travel: a finger easing off lets it flicker)."""
+
+
+@dataclass(frozen=True)
+class PlannerConfig:
+    """Tuning of :class:`IKPlanner`, one group per stage; lengths in m, times in s, angles in
+    rad. Frozen and hashable (it keys the posture and plan caches).
+
+    Build it by groups (``PlannerConfig(fingers=FingerConfig(hover_height_m=0.005))``), or
+    change fields by their own names, which are unique across the groups
+    (``config.with_fields(hover_height_m=0.005)``)."""
+
+    keys: KeyPressConfig = KeyPressConfig()
+    poses: PoseConfig = PoseConfig()
+    forearm: ForearmConfig = ForearmConfig()
+    fingers: FingerConfig = FingerConfig()
+    strikes: StrikeConfig = StrikeConfig()
+    plan: PlanConfig = PlanConfig()
+    ik: IKConfig = IKConfig()
     paper_embodiment: bool = False
     """Play in the paper's scene (forearm slides ``tx`` and ``ty`` only) instead of declaring
     the height slide (:data:`ENV_OPTIONS`): the thumb then cannot press a white key."""
@@ -361,43 +457,42 @@ class PlannerConfig:
     paper's reduced hand does without (THJ5, THJ1, LFJ5) and THJ2 below 0. Off, the planner
     holds them as the reduced hand has them (commanded 0; THJ2 in [0, 0.698] rad) and plays
     as it does there: every rule here was tuned on that hand."""
-    unsounded_latch: bool = True
-    """Keep the push for the rest of the key's press once given (the key sounds only in the
-    last 0.5 degrees of its travel: a finger easing off lets it flicker)."""
 
-    def hand_poses(self, has_tz: bool) -> tuple[tuple[float, float, float, float], ...]:
-        """Every pose a hand may take, (WRJ2 rad, WRJ1 rad, ty m, raised m): the home pose first
-        (``wrist_pose``, or ``wrist_pose_without_tz`` in a scene without the height slide,
-        where the reach poses are not used), then ``reach_poses``."""
-        if not has_tz:
-            return ((*self.wrist_pose_without_tz, 0.0, 0.0),)
-        return ((*self.wrist_pose, 0.0, 0.0), *self.reach_poses)
+    def with_fields(self, **changes: Any) -> PlannerConfig:
+        """A copy with the fields named changed, each by its own name in whichever group it
+        is (``with_fields(hover_height_m=0.005, damping=0.02)``).
 
-    def __post_init__(self) -> None:
-        if not 0 <= self.push_below_velocity <= 128:
-            raise ValueError(
-                "push_below_velocity must be a MIDI velocity from 0 (no pushes) to 128, "
-                f"not {self.push_below_velocity}"
-            )
-        unknown = [name for name in self.best_candidates if name not in PLAN_CANDIDATES]
-        if not self.best_candidates or unknown:
-            raise ValueError(
-                f"best_candidates must be some of {', '.join(PLAN_CANDIDATES)}, "
-                f"not {list(self.best_candidates)}"
-            )
-        for pose in self.reach_poses:
-            if len(pose) != 4 or not all(np.isfinite(v) for v in pose):
-                raise ValueError(
-                    "each of reach_poses must be (WRJ2 rad, WRJ1 rad, ty m, raised m), "
-                    f"not {pose!r}"
-                )
-        if not self.pose_change_s > 0:
-            raise ValueError(f"pose_change_s must be > 0, not {self.pose_change_s}")
-        if self.shift_delay_max_frames < 0 or self.shift_delay_cost < 0:
-            raise ValueError(
-                "shift_delay_max_frames and shift_delay_cost must be >= 0, not "
-                f"{self.shift_delay_max_frames} and {self.shift_delay_cost}"
-            )
+        Raises:
+            ValueError: a name that is no field of any group.
+        """
+        groups: dict[str, dict[str, Any]] = {}
+        top: dict[str, Any] = {}
+        for name, value in changes.items():
+            group = _GROUP_OF.get(name)
+            if group is not None:
+                groups.setdefault(group, {})[name] = value
+            elif name in _TOP_FIELDS:
+                top[name] = value
+            else:
+                raise ValueError(f"PlannerConfig has no field {name!r}")
+        replaced = {g: dataclasses.replace(getattr(self, g), **v) for g, v in groups.items()}
+        return dataclasses.replace(self, **replaced, **top)
+
+
+#: Each group's field names, by the group's attribute on :class:`PlannerConfig`.
+_GROUPS: dict[str, type] = {
+    "keys": KeyPressConfig,
+    "poses": PoseConfig,
+    "forearm": ForearmConfig,
+    "fingers": FingerConfig,
+    "strikes": StrikeConfig,
+    "plan": PlanConfig,
+    "ik": IKConfig,
+}
+_GROUP_OF: dict[str, str] = {
+    f.name: group for group, cls in _GROUPS.items() for f in dataclasses.fields(cls)
+}
+_TOP_FIELDS = {f.name for f in dataclasses.fields(PlannerConfig)} - set(_GROUPS)
 
 
 #: The poses (WRJ2 rad, WRJ1 rad, forearm ty m, raised m) over which the whole hand's reach

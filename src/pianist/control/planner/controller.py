@@ -3,7 +3,7 @@
 ``reset(env)`` reads the environment through its control handle, sets the keys' press
 points and heights (see :class:`PlannerState`), reads the hands' indices (:class:`Hand`),
 makes their poses with their posture samples (:mod:`postures`), and plans the hands: frame
-by frame, over the whole piece, or the best of those plans (``PlannerConfig.hand_planning``),
+by frame, over the whole piece, or the best of those plans (``PlanConfig.hand_planning``),
 a :class:`~pianist.control.planner.plans.Plan` kept in :attr:`IKPlanner.cache` (:mod:`plans`)
 for the next episode of the same song and scene.
 
@@ -140,14 +140,14 @@ class IKPlanner(BaseController):
             self._restore(cached.plan)
             self._play_tape()
             return
-        if cfg.hand_planning == "best":
+        if cfg.plan.hand_planning == "best":
             chosen = self._choose_plan(goal, seed)
         else:
-            refinger = cfg.hand_planning == "split" or (
-                cfg.refinger and cfg.hand_planning == "piece"
+            refinger = cfg.plan.hand_planning == "split" or (
+                cfg.plan.refinger and cfg.plan.hand_planning == "piece"
             )
             chosen = self._plan(
-                goal, PlanKind(cfg.hand_planning, refinger, cfg.hand_plan.objective)
+                goal, PlanKind(cfg.plan.hand_planning, refinger, cfg.plan.hand_plan.objective)
             )
         entry = CachedPlan(chosen, self._replay, dict(self.rehearsed), dict(self.rehearsed_from))
         self.cache.put(goal, handle.scene.options, cfg, entry)
@@ -156,7 +156,7 @@ class IKPlanner(BaseController):
     def _play_tape(self) -> None:
         """Give the environment the chosen rehearsal's steps to play back (``replay_tape``;
         taken only if the episode is where the rehearsal started)."""
-        if self._replay is not None and self.config.replay_tape:
+        if self._replay is not None and self.config.plan.replay_tape:
             self.handle.play_tape(self._replay.tape)
 
     def setup(self, env: gym.Env) -> None:
@@ -188,12 +188,17 @@ class IKPlanner(BaseController):
             C.WHITE_KEY_HEIGHT_M,
         )
         self.key_point = self.scratch.site_xpos[handle.scene.key_sites].copy()
-        self.key_point[:, 0] = np.where(C.BLACK_KEY_MASK, cfg.black_press_x_m, cfg.white_press_x_m)
+        self.key_point[:, 0] = np.where(
+            C.BLACK_KEY_MASK, cfg.keys.black_press_x_m, cfg.keys.white_press_x_m
+        )
         self.key_depth = np.where(
-            C.BLACK_KEY_MASK, cfg.black_press_depth_m, cfg.white_press_depth_m
+            C.BLACK_KEY_MASK, cfg.keys.black_press_depth_m, cfg.keys.white_press_depth_m
         )
         self.strikes = plan_strikes(
-            goal, cfg.push_below_velocity, cfg.push_lag_frames, cfg.push_speed_scale
+            goal,
+            cfg.strikes.push_below_velocity,
+            cfg.strikes.push_lag_frames,
+            cfg.strikes.push_speed_scale,
         )
         self.key_qpos = handle.scene.key_qpos
         self.key_threshold = (
@@ -216,16 +221,16 @@ class IKPlanner(BaseController):
         ``piece_plan_margin`` of the most key-frames any leaves."""
         cfg = self.config
         plans = []
-        for name in cfg.best_candidates:
+        for name in cfg.plan.best_candidates:
             plan = self._plan(goal, PLAN_CANDIDATES[name])
             playable = playable_mask(self)
             promise = step_f1(playable, goal.keys)  # (T,) the plan's step F1
             plans.append((name, int(playable.sum()), promise, plan))
-        if cfg.choose_plan == "rehearsal" and len(plans) > 1:
+        if cfg.plan.choose_plan == "rehearsal" and len(plans) > 1:
             candidates = [(name, promise, plan) for name, _, promise, plan in plans]
             chosen = self._rehearse_plans(candidates, seed)
         else:
-            enough = max(p[1] for p in plans) - cfg.piece_plan_margin * goal.keys.sum()
+            enough = max(p[1] for p in plans) - cfg.plan.piece_plan_margin * goal.keys.sum()
             chosen = next(plan for _, n, _, plan in plans if n >= enough)
         self._restore(chosen)
         return chosen
@@ -321,9 +326,7 @@ class IKPlanner(BaseController):
         reset): what the hands reach with every joint of the action space, for the reach
         ceiling. Posture samples are made for each pose once per process (~0.15 s each)."""
         if self._whole_hand is None:
-            cfg = dataclasses.replace(
-                self.config, wrist_pose=(0.0, 0.0), reach_poses=WHOLE_HAND_POSES[1:]
-            )
+            cfg = self.config.with_fields(wrist_pose=(0.0, 0.0), reach_poses=WHOLE_HAND_POSES[1:])
             hands = [Hand.build(self.model, h, cfg.full_hand) for h in self.handle.scene.hands]
             data = mujoco.MjData(self.model)
             poses = hand_poses(self.model, data, hands, cfg, self.handle.scene.options)
@@ -340,7 +343,7 @@ class IKPlanner(BaseController):
           between two keys' press points) the fingers of each hand (right first) reach from
           its planned forearm position in its planned pose;
         - ``hand_pose``: (T, H) int, each hand's planned pose (0: the home pose, the wrist
-          straight; k: ``PlannerConfig.reach_poses[k - 1]``);
+          straight; k: ``PoseConfig.reach_poses[k - 1]``);
         - ``hand_sides``: (H,) "right" / "left", the order of the hands above;
         - ``planned_fingers``: (T, 88) the finger (0-9) the plan gives each due key, -1 none;
         - ``left_out_keys``, ``shift_keys``: (T, 88) bool, the due keys the plan sends no
@@ -379,7 +382,7 @@ class IKPlanner(BaseController):
         play that plan from now on; returns it."""
         cfg = self.config
         plan_cfg = self._plan_config(how)
-        if cfg.uncross_hands and len(self.hands) == 2:
+        if cfg.plan.uncross_hands and len(self.hands) == 2:
             goal = self._uncrossed(goal)
         piece = how.kind in ("piece", "split")
         if how.kind == "split" and len(self.hands) == 2:
@@ -389,11 +392,18 @@ class IKPlanner(BaseController):
         else:
             fingers = goal.fingers.copy()  # the song's
             courses = [
-                frame_plan(hand, poses[0], goal, self.key_point, cfg.lazy_m, cfg.skip_out_of_reach)
+                frame_plan(
+                    hand,
+                    poses[0],
+                    goal,
+                    self.key_point,
+                    cfg.forearm.lazy_m,
+                    cfg.forearm.skip_out_of_reach,
+                )
                 for hand, poses in zip(self.hands, self.poses, strict=True)
             ]
         if len(self.hands) == 2:
-            courses = keep_forearms_apart(self.hands, courses, cfg.forearm_separation_m)
+            courses = keep_forearms_apart(self.hands, courses, cfg.forearm.forearm_separation_m)
         # Each hand's commands, the right first: a shift's delay keeps clear of the other
         # forearm as it follows its plan (the first one's as followed, once made).
         held = [course.position for course in courses]
@@ -443,7 +453,7 @@ class IKPlanner(BaseController):
         courses: dict[int, HandPlan] = {order[0]: plan(order[0])}
         if len(order) == 2:
             first, second = order
-            if refinger and cfg.share_keys:
+            if refinger and cfg.plan.share_keys:
                 courses[second] = plan(
                     second,
                     take=courses[first].skip,
@@ -485,13 +495,13 @@ class IKPlanner(BaseController):
         """The config with the whole-piece plan's weights of a plan made as ``how`` says (its
         objective, and :data:`TURN_FOR_SPANS`'s for the plan that turns for spans)."""
         costs = dataclasses.replace(
-            self.config.hand_plan,
+            self.config.plan.hand_plan,
             objective=how.objective,
             **(TURN_FOR_SPANS if how.turn else {}),
         )
-        if costs == self.config.hand_plan:
+        if costs == self.config.plan.hand_plan:
             return self.config
-        return dataclasses.replace(self.config, hand_plan=costs)
+        return self.config.with_fields(hand_plan=costs)
 
     def _piece_planner(
         self, goal, refinger: bool, plan_cfg: PlannerConfig
@@ -507,9 +517,9 @@ class IKPlanner(BaseController):
                 goal=goal,
                 key_point=self.key_point,
                 dt=self.dt,
-                costs=plan_cfg.hand_plan,
+                costs=plan_cfg.plan.hand_plan,
                 refinger=refinger,
-                pose_change_s=self.config.pose_change_s,
+                pose_change_s=self.config.poses.pose_change_s,
                 **options,
             )
 
@@ -525,9 +535,9 @@ class IKPlanner(BaseController):
         right, left = r, 1 - r
         song_hand = np.where(goal.keys, np.where(goal.fingers < FINGERS_PER_HAND, 0, 1), -1)
         costs = SplitCosts(
-            separation_m=cfg.forearm_separation_m,
-            clearance_cost=cfg.clearance_cost,
-            hand=cfg.hand_plan,
+            separation_m=cfg.forearm.forearm_separation_m,
+            clearance_cost=cfg.plan.clearance_cost,
+            hand=cfg.plan.hand_plan,
         )
         split = split_hands(
             goal.keys,
@@ -597,8 +607,8 @@ class IKPlanner(BaseController):
             return replay.actions[handle.step_index].copy()
         ctrl = np.array(handle.data.ctrl)
         scratch.qpos[:] = handle.data.qpos
-        press_frame = min(t + cfg.press_lead_frames, T - 1)
-        hover_end = min(T, press_frame + 1 + round(cfg.hover_lead_s / self.dt))
+        press_frame = min(t + cfg.fingers.press_lead_frames, T - 1)
+        hover_end = min(T, press_frame + 1 + round(cfg.fingers.hover_lead_s / self.dt))
         settings = [hand_cfg or cfg for hand_cfg in self.hand_settings]
         poses, bent_up = [], []
         for i, hand in enumerate(self.hands):
@@ -611,7 +621,7 @@ class IKPlanner(BaseController):
             bent_up.append(set_wrist(scratch, ctrl, hand, pose.wrist, pose.ty, hand_cfg))
             # The fingers are solved for where the moving forearm will be a little later:
             # their servos lag behind their commands by about a control step.
-            scratch.qpos[hand.tx_qpos] += cfg.forearm_lead_s * handle.data.qvel[hand.tx_dof]
+            scratch.qpos[hand.tx_qpos] += cfg.forearm.forearm_lead_s * handle.data.qvel[hand.tx_dof]
         mujoco.mj_kinematics(m, scratch)
         for i, hand in enumerate(self.hands):
             (pose_index, pose), hand_cfg = poses[i], settings[i]

@@ -244,8 +244,8 @@ def planner_ceiling(
         C.BLACK_KEY_MASK,
         right,
         left,
-        cfg.forearm_separation_m,
-        tolerance_m=cfg.playable_tolerance_m,
+        cfg.forearm.forearm_separation_m,
+        tolerance_m=cfg.plan.playable_tolerance_m,
     )
 
 

@@ -94,8 +94,8 @@ def clearance(
 
     def cost(grid: np.ndarray) -> np.ndarray:
         gap = sign * ((plan.position[:, None] + hand.root_y) - (grid[None, :] + other.root_y))
-        close = (gap < cfg.forearm_separation_m) & plan.busy[:, None]
-        return np.where(close, cfg.clearance_cost, 0.0)
+        close = (gap < cfg.forearm.forearm_separation_m) & plan.busy[:, None]
+        return np.where(close, cfg.plan.clearance_cost, 0.0)
 
     return cost
 
@@ -267,7 +267,7 @@ def playable_mask(
     full = plan_reaches(poses)[0]
     lo, hi = full[plan.pose_plan[frames], finger, C.BLACK_KEY_MASK[keys].astype(int)].T
     relative = planner.key_point[keys, 1] - plan.tx_plan[frames]
-    tolerance = planner.config.playable_tolerance_m
+    tolerance = planner.config.plan.playable_tolerance_m
     inside = (relative >= lo - tolerance) & (relative <= hi + tolerance)
     mask = np.zeros(goal.keys.shape, dtype=bool)
     mask[frames[inside], keys[inside]] = True
@@ -319,40 +319,42 @@ def plan_commands(
     plan = course.position
     pose_plan = course.pose
     T = len(plan)
-    n = max(1, round(cfg.forearm_move_s / dt))
+    n = max(1, round(cfg.forearm.forearm_move_s / dt))
     # A pressed finger pins the hand to its key by friction: before a shift too large for
     # the fingers to absorb, the hand lets go of its keys for the move's duration.
     free = np.zeros(T, dtype=bool)
     shift_to = np.zeros(T, dtype=int)  # during a move: the frame of the note it is for
     # Moves end ``press_lead_frames`` before the note, so that fingers press a still hand;
     # shifts ``shift_lead_frames`` before it, so that the keys before them are held longer.
-    lead = cfg.press_lead_frames
-    if not 0 <= cfg.shift_lead_frames <= lead:
+    lead = cfg.fingers.press_lead_frames
+    if not 0 <= cfg.forearm.shift_lead_frames <= lead:
         raise ValueError("shift_lead_frames must be between 0 and press_lead_frames")
     # A change of pose is a shift too: the wrist turns with the fingers lifted.
     turns = np.diff(pose_plan) != 0
     # The whole-piece plan was made knowing which moves it makes with the fingers on the keys.
-    threshold = np.full(len(turns), cfg.hand_plan.shift_m if multi_step else cfg.shift_threshold_m)
-    if multi_step and cfg.hand_plan.reach_pose_shift_m is not None:
+    threshold = np.full(
+        len(turns), cfg.plan.hand_plan.shift_m if multi_step else cfg.forearm.shift_threshold_m
+    )
+    if multi_step and cfg.plan.hand_plan.reach_pose_shift_m is not None:
         # Moves within a reach pose may be larger (``HandPlanCosts.reach_pose_shift_m``).
         turned = (pose_plan[1:] > 0) & ~turns
-        threshold[turned] = cfg.hand_plan.reach_pose_shift_m
+        threshold[turned] = cfg.plan.hand_plan.reach_pose_shift_m
     shifts = np.flatnonzero((np.abs(np.diff(plan)) > threshold) | turns) + 1
-    delay = lead - cfg.shift_lead_frames
+    delay = lead - cfg.forearm.shift_lead_frames
     # Steps each shift takes: a long jump needs more than one (the slide's servo has a
     # limited force); the whole-piece plan knows this and has paid for the frames.
     if multi_step:
         need = move_frames(
-            plan[shifts] - plan[shifts - 1], dt, cfg.hand_plan.slide_acceleration_m_s2
+            plan[shifts] - plan[shifts - 1], dt, cfg.plan.hand_plan.slide_acceleration_m_s2
         )
-        turn_frames = max(1, round(cfg.pose_change_s / dt))
+        turn_frames = max(1, round(cfg.poses.pose_change_s / dt))
         need = np.where(turns[shifts - 1], np.maximum(need, turn_frames), need)
     else:
         need = np.full(len(shifts), n)
     delays = np.full(len(shifts), delay)
     # Only the whole-piece plan's shifts: each is one jump whose duration the plan knows
     # (a frame plan moves in one-step pieces, whose frames in between play nothing).
-    if multi_step and played is not None and cfg.shift_delay_max_frames > 0:
+    if multi_step and played is not None and cfg.forearm.shift_delay_max_frames > 0:
         delays += _shift_delays(hand, plan, shifts, need, lead - delay, played, other, cfg)
     # The pose commanded: each change from the start of its shift's window.
     pose_held = pose_plan.copy()
@@ -431,7 +433,7 @@ def _shift_delays(
         if i + 1 < len(shifts):
             limit = max(0, int(shifts[i + 1] - need[i + 1] - early))
         best, lost = 0, float(played[start:end].sum())
-        for d in range(1, cfg.shift_delay_max_frames + 1):
+        for d in range(1, cfg.forearm.shift_delay_max_frames + 1):
             if end + d > limit:
                 break
             if other is not None:
@@ -440,12 +442,12 @@ def _shift_delays(
                 other_hand, other_held = other
                 there = other_hand.root_y + other_held[k : min(T, k + d + 1)]
                 gap = sign * (hand.root_y + plan[k - 1] - there)
-                if (gap < cfg.forearm_separation_m - 1e-9).any():
+                if (gap < cfg.forearm.forearm_separation_m - 1e-9).any():
                     break
             # Lost: the delayed window, and any frames from the note on before it (the
             # hand still at its old place, the keys there planned for the new one).
             here = played[min(start + d, max(k, end)) : end + d].sum()
-            here += cfg.shift_delay_cost * d
+            here += cfg.forearm.shift_delay_cost * d
             if here < lost:
                 best, lost = d, here
         out[i] = best
@@ -472,9 +474,9 @@ def command_height(ctrl: np.ndarray, data, hand: Hand, raise_m: float, cfg: Plan
         assert hand.tz_qpos is not None and hand.tz_range is not None  # set with tz_actuator
         # The keys push the hand up (about a centimetre under a chord): pressing harder the
         # further it has risen stiffens the slide's servo against them.
-        height = cfg.hand_height_m + raise_m
+        height = cfg.forearm.hand_height_m + raise_m
         rise = data.qpos[hand.tz_qpos] - height
-        command = height - cfg.height_feedback * rise
+        command = height - cfg.forearm.height_feedback * rise
         ctrl[hand.tz_actuator] = np.clip(command, *hand.tz_range)
 
 

@@ -199,18 +199,20 @@ def solve_fingers(
     b = batch
     angles = b.lift.copy()  # (F, D)
     # In a reach pose a hovering finger keeps its height first (``hover_height_weight``).
-    weight = cfg.hover_height_weight if reach_pose else 1.0
-    sub = b.subset(active, cfg.thumb_lateral_weight, memory.state == FingerState.HOVERING, weight)
+    weight = cfg.ik.hover_height_weight if reach_pose else 1.0
+    sub = b.subset(
+        active, cfg.ik.thumb_lateral_weight, memory.state == FingerState.HOVERING, weight
+    )
     act = sub.fingers
     if act.size:
         goal = targets[act]
         angles[act] = b.nearest(act, goal, sub.raised_weights)
-        damping = b.damping(cfg.damping**2 + cfg.rest_weight)
-        limit = cfg.step_limit_rad
+        damping = b.damping(cfg.ik.damping**2 + cfg.ik.rest_weight)
+        limit = cfg.ik.step_limit_rad
         jacs = b.jacs
         flat = jacs.reshape(-1)  # a view: mj_jacSite writes into jacs
     b.set(scratch, angles)
-    for _ in range(cfg.iterations if act.size else 0):
+    for _ in range(cfg.ik.iterations if act.size else 0):
         mujoco.mj_kinematics(m, scratch)
         mujoco.mj_comPos(m, scratch)  # mj_jacSite reads cdof and subtree centres
         origin = scratch.xpos[hand.forearm_body]
@@ -233,13 +235,13 @@ def solve_fingers(
     mujoco.mj_comPos(m, scratch)
     for f in np.flatnonzero(memory.pressing).tolist():
         finger = hand.fingers[f]
-        amount = cfg.thumb_push_rad if f == 0 else cfg.finger_push_rad[f - 1]
-        if memory.unsounded[f] >= cfg.unsounded_steps:  # pressing its key, not sounding it
-            amount += cfg.unsounded_push_rad
+        amount = cfg.ik.thumb_push_rad if f == 0 else cfg.ik.finger_push_rad[f - 1]
+        if memory.unsounded[f] >= cfg.ik.unsounded_steps:  # pressing its key, not sounding it
+            amount += cfg.ik.unsounded_push_rad
         if memory.repress[f]:  # pressing again the key it let up last step
-            amount += cfg.restrike_push_rad[f]
+            amount += cfg.ik.restrike_push_rad[f]
         # The other fingers' keys bend the wrist up and lift this one off its key.
-        bent = cfg.reach_bent_wrist_push if reach_pose else cfg.bent_wrist_push
+        bent = cfg.ik.reach_bent_wrist_push if reach_pose else cfg.ik.bent_wrist_push
         amount += bent * wrist_bent_up
         mujoco.mj_jacSite(m, scratch, b.jacp, None, finger.site)
         down = -finger.jacobian(b.jacp)[2]

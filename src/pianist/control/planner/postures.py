@@ -3,7 +3,7 @@
 A hand plays in one of a few poses (:meth:`PlannerConfig.hand_poses`): the home pose (the
 wrist straight) and the reach poses (the wrist turned towards the thumb and flexed, which
 spans an octave). For every pose, every finger's joints are sampled uniformly within their
-limits (``PlannerConfig.samples`` postures, always with generator seed 0) with the forearm at
+limits (``PoseConfig.samples`` postures, always with generator seed 0) with the forearm at
 its playing height and the wrist at the pose, and each sample's fingertip is computed
 relative to the forearm body. The samples are made once per scene, config and pose
 (:data:`_POSTURES`) and are read only. From them each pose (:class:`HandPose`) takes
@@ -97,13 +97,13 @@ def make_pose(
         finger.set(data, _rest_angles(finger))
     mujoco.mj_kinematics(m, data)
     origin = data.xpos[hand.forearm_body].copy()
-    lift_z = C.WHITE_KEY_HEIGHT_M + cfg.lift_height_m + C.FINGERTIP_CAPSULE_RADIUS_M
+    lift_z = C.WHITE_KEY_HEIGHT_M + cfg.poses.lift_height_m + C.FINGERTIP_CAPSULE_RADIUS_M
     rest_tips = data.site_xpos[hand.sites] - origin
     lift_tips = rest_tips.copy()
     lift_tips[:, 2] = lift_z - origin[2]
     # Thumb: under the side of the palm, a little more than a key from the index finger.
     side = 1.0 if hand.side == "right" else -1.0
-    lift_tips[0, 1] = rest_tips[1, 1] - side * cfg.thumb_offset_m
+    lift_tips[0, 1] = rest_tips[1, 1] - side * cfg.poses.thumb_offset_m
     lift = [
         postures[int(tree.query(lift_tips[f])[1])] for f, (postures, _, tree) in enumerate(samples)
     ]
@@ -120,7 +120,7 @@ def make_pose(
         rest_tips=rest_tips,
         lift_tips=lift_tips,
         tip_offset_y=tip_offset_y,
-        reach=_reach(tips, slide, tip_offset_y, cfg.reach_margin, cfg),
+        reach=_reach(tips, slide, tip_offset_y, cfg.poses.reach_margin, cfg),
         full_reach=_reach(tips, slide, tip_offset_y, 0.0, cfg),
         batch=FingerBatch(hand.fingers, [(p, t) for p, t, _ in samples], lift, m.nv),
     )
@@ -146,13 +146,13 @@ def _reach(
     for f, finger_tips in enumerate(tips):
         for black in (0, 1):
             if black:
-                x = cfg.black_press_x_m
+                x = cfg.keys.black_press_x_m
                 top = C.WHITE_KEY_HEIGHT_M + C.BLACK_KEY_TOP_ABOVE_WHITE_M
             else:
-                x = cfg.thumb_white_press_x_m if f == 0 else cfg.white_press_x_m
+                x = cfg.keys.thumb_white_press_x_m if f == 0 else cfg.keys.white_press_x_m
                 top = C.WHITE_KEY_HEIGHT_M
-            ok = (np.abs(finger_tips[:, 0] - x) < cfg.reach_x_tolerance_m) & (
-                finger_tips[:, 2] < top + radius - cfg.reach_depth_m
+            ok = (np.abs(finger_tips[:, 0] - x) < cfg.poses.reach_x_tolerance_m) & (
+                finger_tips[:, 2] < top + radius - cfg.poses.reach_depth_m
             )
             if ok.sum() >= 10:
                 lo, hi = np.percentile(finger_tips[ok, 1] - slide, [1, 99])
@@ -165,7 +165,7 @@ def place_forearm(data, hand: Hand, ty: float, raise_m: float, cfg: PlannerConfi
     """Put the forearm at its playing height raised by ``raise_m`` (m) in ``data`` (when it
     has a height slide), and at ``ty`` (m, when it has that slide)."""
     if hand.tz_qpos is not None:
-        data.qpos[hand.tz_qpos] = cfg.hand_height_m + raise_m
+        data.qpos[hand.tz_qpos] = cfg.forearm.hand_height_m + raise_m
     if hand.ty_qpos is not None:
         data.qpos[hand.ty_qpos] = ty
 
@@ -192,7 +192,7 @@ def set_wrist(
             ctrl[hand.ty_actuator] = ty
     bent_up = 0.0
     for i, ((actuator, qpos), angle, gain) in enumerate(
-        zip(hand.wrist, wrist, cfg.wrist_feedback, strict=False)
+        zip(hand.wrist, wrist, cfg.poses.wrist_feedback, strict=False)
     ):
         off = float(np.mean(data.qpos[qpos])) - angle
         if i == 1:  # WRJ1, flexion: the keys push it negative (the hand bends up)
@@ -220,7 +220,7 @@ def hand_poses(
     lifted postures and reach; per hand, in the order of ``hands``. ``data`` is scratch."""
     has_tz = all(hand.tz_qpos is not None for hand in hands)
     poses: list[list[HandPose]] = [[] for _ in hands]
-    for pose in cfg.hand_poses(has_tz):
+    for pose in cfg.poses.hand_poses(has_tz):
         key = (scene_options, cfg, pose)
         samples = _POSTURES.get(key)
         if samples is None:
@@ -259,18 +259,18 @@ def _sample_postures(
     for hand in hands:
         place_forearm(data, hand, pose[2], pose[3], cfg)
         set_wrist(data, None, hand, (pose[0], pose[1]), pose[2], cfg)
-    batch = np.tile(data.qpos, (cfg.samples, 1))
+    batch = np.tile(data.qpos, (cfg.poses.samples, 1))
     postures = []
     for hand in hands:
         for finger in hand.fingers:
-            angles = rng.uniform(finger.low, finger.high, (cfg.samples, finger.dof))
+            angles = rng.uniform(finger.low, finger.high, (cfg.poses.samples, finger.dof))
             for i, (qpos, share) in enumerate(zip(finger.qpos, finger.share, strict=True)):
                 batch[:, qpos] = angles[:, i : i + 1] * share
             postures.append(angles)
     sites = np.concatenate([hand.sites for hand in hands])
     origins = np.repeat([hand.forearm_body for hand in hands], FINGERS_PER_HAND)
-    tips = np.empty((cfg.samples, len(sites), 3))
-    for s in range(cfg.samples):
+    tips = np.empty((cfg.poses.samples, len(sites), 3))
+    for s in range(cfg.poses.samples):
         data.qpos[:] = batch[s]
         mujoco.mj_kinematics(m, data)
         tips[s] = data.site_xpos[sites] - data.xpos[origins]

@@ -21,7 +21,7 @@ descent of its key:
    rests on the key; once the key has sounded it holds it at the full press depth like any
    other finger.
 
-Louder notes than ``PlannerConfig.push_below_velocity`` are struck at full speed, and so is
+Louder notes than ``StrikeConfig.push_below_velocity`` are struck at full speed, and so is
 every note of a song of one velocity throughout (it plays as without pushes).
 
 Inputs: the goal frames (keys and velocities), each key's lever and angles, the control step.

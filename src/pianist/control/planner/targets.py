@@ -84,19 +84,19 @@ def fingertip_targets(
     mem.state = np.full(FINGERS_PER_HAND, FingerState.LIFTED, dtype=np.int8)
     if plan.free[now]:
         mem.last_key[:] = -1
-    if plan.free[now] and cfg.hover_in_shift:
+    if plan.free[now] and cfg.fingers.hover_in_shift:
         # The hand is moving: the fingers of the note it moves for travel with it just
         # above their keys, the others stay lifted.
         _hover_over(planner, hand, plan.skip, mem, plan.shift_to[now], targets, active, cfg, None)
         # A finger still on the keys with far to go comes up first (``jump_lift_m``).
-        low = real_tips[:, 2] < C.WHITE_KEY_HEIGHT_M + radius + cfg.jump_low_m
-        far = active & low & (np.abs(targets[:, 1] - real_tips[:, 1]) > cfg.jump_lift_m)
+        low = real_tips[:, 2] < C.WHITE_KEY_HEIGHT_M + radius + cfg.fingers.jump_low_m
+        far = active & low & (np.abs(targets[:, 1] - real_tips[:, 1]) > cfg.fingers.jump_lift_m)
         mem.state[active] = FingerState.TRAVELLING
         active[far] = False
         targets[far] = lift_tips[far] + origin
         mem.active = active.copy()
         return targets - origin, active, mem
-    lead = min(now + cfg.press_lead_frames, goal.num_frames - 1)
+    lead = min(now + cfg.fingers.press_lead_frames, goal.num_frames - 1)
     key_down = planner.handle.data.qpos[planner.key_qpos] >= planner.key_threshold
     hovering = np.zeros(FINGERS_PER_HAND, dtype=bool)
     pressed_key = np.full(FINGERS_PER_HAND, -1)
@@ -113,7 +113,7 @@ def fingertip_targets(
             targets[finger] = point
             active[finger] = True
             if frame != now and key_down[key]:
-                targets[finger, 2] = top + cfg.release_height_m  # re-strike: up first
+                targets[finger, 2] = top + cfg.fingers.release_height_m  # re-strike: up first
                 mem.state[finger] = FingerState.RESTRIKING
                 continue
             if plan.free[frame]:
@@ -122,52 +122,56 @@ def fingertip_targets(
                 mem.state[finger] = FingerState.TRAVELLING
                 continue
             black = C.BLACK_KEY_MASK[key]
-            tolerance = cfg.black_align_tolerance_m if black else cfg.align_tolerance_m
+            tolerance = (
+                cfg.fingers.black_align_tolerance_m if black else cfg.fingers.align_tolerance_m
+            )
             # Across the keys is what matters; along a key a few mm either way still press,
             # but a finger too far back over a white key would land on a black one.
             miss = abs(real_tips[finger, 1] - point[1])
-            if finger and not black and real_tips[finger, 0] < point[0] - cfg.align_along_m:
+            if finger and not black and real_tips[finger, 0] < point[0] - cfg.fingers.align_along_m:
                 miss = np.inf
-            if black and real_tips[finger, 0] > point[0] + cfg.black_front_m:
+            if black and real_tips[finger, 0] > point[0] + cfg.fingers.black_front_m:
                 miss = np.inf  # still over the white key in front
             down = real_tips[finger, 2] < top
             # A pressing finger keeps pressing while it stays roughly on its key; one that
             # slid off (beside a black key, say) comes up to try again.
             # A finger that hovers off its key and no longer moves cannot get closer at
             # that height (the thumb under the palm, say): it goes down from where it is.
-            stuck = mem.stuck[finger] >= cfg.stuck_frames and miss <= cfg.stuck_reach_m
+            stuck = (
+                mem.stuck[finger] >= cfg.fingers.stuck_frames and miss <= cfg.fingers.stuck_reach_m
+            )
             # A finger holding its key down keeps it, however far across the keys its tip
             # slid (not one too far along it: that one is over another key).
             holding = (
-                cfg.keep_sounding
+                cfg.fingers.keep_sounding
                 and mem.last_key[finger] == key
                 and key_down[key]
                 and np.isfinite(miss)
             )
             if (
                 miss <= tolerance
-                or (down and miss <= cfg.keep_pressing_ratio * tolerance)
+                or (down and miss <= cfg.fingers.keep_pressing_ratio * tolerance)
                 or stuck
                 or holding
             ):
-                extra = cfg.thumb_extra_depth_m if finger == 0 else 0.0
+                extra = cfg.keys.thumb_extra_depth_m if finger == 0 else 0.0
                 targets[finger, 2] = top - planner.key_depth[key] - extra
                 if planner.strikes.rate[frame, key] and not key_down[key]:
                     # A pushed note not sounded yet: its own depth (strikes.py).
                     targets[finger, 2] = _push(planner, hand, mem, frame, int(key), now, cfg)
                     gentle[finger] = (
-                        now <= planner.strikes.sound[frame, key] + cfg.push_grace_frames
+                        now <= planner.strikes.sound[frame, key] + cfg.strikes.push_grace_frames
                     )
                 mem.pressing[finger] = True
                 mem.state[finger] = FingerState.PRESSING
                 pressed_key[finger] = key
             else:
                 transfer = mem.last_key[finger] >= 0 and mem.last_key[finger] != key
-                height = cfg.transfer_height_m if transfer else cfg.hover_height_m
+                height = cfg.fingers.transfer_height_m if transfer else cfg.fingers.hover_height_m
                 if planner.strikes.rate[frame, key]:
-                    height = min(height, cfg.push_rest_m)
+                    height = min(height, cfg.strikes.push_rest_m)
                 targets[finger, 2] = top + height
-                if cfg.unwedge and mem.stuck[finger] >= cfg.stuck_frames and down:
+                if cfg.fingers.unwedge and mem.stuck[finger] >= cfg.fingers.stuck_frames and down:
                     # Wedged below the key's top against its side: up and clear first.
                     targets[finger] = lift_tips[finger] + origin
                 hovering[finger] = True
@@ -176,18 +180,18 @@ def fingertip_targets(
         mem.unsounded, mem.pressing, pressed_key, mem.last_key, key_down, cfg
     )
     mem.repress = mark_represses(mem.pressing, let_up, cfg)
-    mem.unsounded[gentle] = np.minimum(mem.unsounded[gentle], cfg.unsounded_steps - 1)
+    mem.unsounded[gentle] = np.minimum(mem.unsounded[gentle], cfg.ik.unsounded_steps - 1)
     mem.repress &= ~gentle
     pushed &= ~gentle
     mem.state[pushed | mem.repress] = FingerState.PUSHING
     # A finger keeps its last key while it presses or hovers on its way to the next one.
     mem.last_key = np.where(mem.pressing, pressed_key, np.where(hovering, mem.last_key, -1))
     # Count the steps each hovering finger has stood still.
-    still = np.linalg.norm(real_tips - mem.last_tips, axis=1) < cfg.still_m
+    still = np.linalg.norm(real_tips - mem.last_tips, axis=1) < cfg.fingers.still_m
     mem.stuck = np.where(hovering & still, mem.stuck + 1, 0)
     mem.last_tips = real_tips.copy()
     for t in range(lead + 1, hover_end if not plan.free[now] else lead + 1):
-        if plan.free[t] and cfg.hover_stops_at_shift:
+        if plan.free[t] and cfg.fingers.hover_stops_at_shift:
             break  # keys past a shift are out of reach from here
         _hover_over(planner, hand, plan.skip, mem, t, targets, active, cfg, now)
     mem.state[active & (mem.state == FingerState.LIFTED)] = FingerState.HOVERING
@@ -199,7 +203,7 @@ def mark_represses(pressing: np.ndarray, let_up: np.ndarray, cfg) -> np.ndarray:
     """(5,) bool ``repress``: the fingers pressing now (``pressing`` (5,) bool) that let their
     key up last step (``let_up`` (5,) bool). A re-strike has one step to bring its key
     down again, so the IK pushes it from the first (``restrike_push_rad``)."""
-    return pressing & let_up & (np.asarray(cfg.restrike_push_rad) > 0)
+    return pressing & let_up & (np.asarray(cfg.ik.restrike_push_rad) > 0)
 
 
 def count_unsounded(
@@ -228,10 +232,10 @@ def count_unsounded(
     # Once pushed harder, a finger keeps that push while it holds the key: the key's
     # sounding band is the last 0.5 degrees of its travel, and a finger that eased off
     # as soon as the key sounded would let it flicker in and out of it.
-    latched = again & (unsounded >= cfg.unsounded_steps) & cfg.unsounded_latch
+    latched = again & (unsounded >= cfg.ik.unsounded_steps) & cfg.ik.unsounded_latch
     unsounded = np.where(again & ~sounding, unsounded + 1, 0)
-    unsounded = np.where(latched, np.maximum(unsounded, cfg.unsounded_steps), unsounded)
-    return unsounded, pressing & (unsounded >= cfg.unsounded_steps)  # see ik.py
+    unsounded = np.where(latched, np.maximum(unsounded, cfg.ik.unsounded_steps), unsounded)
+    return unsounded, pressing & (unsounded >= cfg.ik.unsounded_steps)  # see ik.py
 
 
 def _hover_over(
@@ -250,7 +254,7 @@ def _hover_over(
     ``active``); at step ``now`` a pushed note's finger rests on its key or pushes it
     (``now`` None: the hand is shifting, no push; ``mem`` keeps the push's progress)."""
     goal = planner.goal
-    height = C.FINGERTIP_CAPSULE_RADIUS_M + cfg.hover_height_m
+    height = C.FINGERTIP_CAPSULE_RADIUS_M + cfg.fingers.hover_height_m
     for key in np.flatnonzero(goal.keys[frame] & ~skip[frame]):
         finger = planner.fingers[frame, key] - hand.finger_offset
         if 0 <= finger < FINGERS_PER_HAND and not active[finger]:
@@ -278,7 +282,7 @@ def _push(
     top = planner.key_top_z[key] + C.FINGERTIP_CAPSULE_RADIUS_M
     plan = planner.strikes
     if now < plan.start[frame, key]:
-        return top + cfg.push_rest_m
+        return top + cfg.strikes.push_rest_m
     sound = int(plan.sound[frame, key])
     same = mem.push_key[finger] == key and mem.push_sound[finger] == sound
     depth = push_depth(
@@ -289,9 +293,9 @@ def _push(
         float(planner.handle.data.qpos[planner.key_qpos[key]]),
         float(mem.push_depth[finger]) if same else np.nan,
         float(planner.key_depth[key]),
-        cfg.push_breakaway_share[int(C.BLACK_KEY_MASK[key])],
+        cfg.strikes.push_breakaway_share[int(C.BLACK_KEY_MASK[key])],
         float(planner.key_point[key, 0] + C.WHITE_KEY_LENGTH_M / 2),
-        cfg.push_gain,
+        cfg.strikes.push_gain,
     )
     mem.push_key[finger], mem.push_sound[finger], mem.push_depth[finger] = key, sound, depth
     return top - depth
@@ -304,5 +308,5 @@ def press_point(
     nearer the front edge for the thumb on a white key."""
     point = planner.key_point[key].copy()
     if finger == 0 and not C.BLACK_KEY_MASK[key]:
-        point[0] = (cfg or planner.config).thumb_white_press_x_m
+        point[0] = (cfg or planner.config).keys.thumb_white_press_x_m
     return point
