@@ -73,6 +73,18 @@ def test_fields_are_changed_by_their_own_names():
     )
     assert config == built and hash(config) == hash(built)  # it keys the caches
     assert PlannerConfig().with_fields(full_hand=True).full_hand
+    # Lists (as from JSON) are kept as tuples: the config keys the caches.
+    listed = PlannerConfig().with_fields(
+        best_candidates=["frame", "piece-f1"], reach_poses=[[-0.44, 0.28, 0.0, 0.0]]
+    )
+    assert listed == PlannerConfig().with_fields(
+        best_candidates=("frame", "piece-f1"), reach_poses=((-0.44, 0.28, 0.0, 0.0),)
+    )
+    assert hash(listed) == hash(
+        PlannerConfig().with_fields(
+            best_candidates=("frame", "piece-f1"), reach_poses=((-0.44, 0.28, 0.0, 0.0),)
+        )
+    )
     with pytest.raises(ValueError, match="no field 'hover_height'"):
         PlannerConfig().with_fields(hover_height=0.005)
 

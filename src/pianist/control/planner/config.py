@@ -68,8 +68,24 @@ PLAN_CANDIDATES: dict[str, PlanKind] = {
 }
 
 
+class _Group:
+    """A group of settings: lists given for its tuple fields are kept as tuples, so that the
+    config stays hashable (it keys the posture and plan caches)."""
+
+    def __post_init__(self) -> None:
+        for f in dataclasses.fields(self):  # type: ignore[arg-type]
+            value = getattr(self, f.name)
+            if isinstance(value, (list, tuple)):
+                object.__setattr__(self, f.name, _tuples(value))
+
+
+def _tuples(value: Any) -> Any:
+    """``value`` with every list in it a tuple."""
+    return tuple(_tuples(v) for v in value) if isinstance(value, (list, tuple)) else value
+
+
 @dataclass(frozen=True)
-class KeyPressConfig:
+class KeyPressConfig(_Group):
     """Where on each key a finger presses, and how deep (the controller's key points)."""
 
     white_press_x_m: float = 0.045
@@ -89,7 +105,7 @@ class KeyPressConfig:
 
 
 @dataclass(frozen=True)
-class PoseConfig:
+class PoseConfig(_Group):
     """The hand's poses and the posture samples each is made of (postures.py): the wrist's
     angles, the reach read from the samples, the lifted posture."""
 
@@ -144,6 +160,7 @@ class PoseConfig:
         return ((*self.wrist_pose, 0.0, 0.0), *self.reach_poses)
 
     def __post_init__(self) -> None:
+        super().__post_init__()
         for pose in self.reach_poses:
             if len(pose) != 4 or not all(np.isfinite(v) for v in pose):
                 raise ValueError(
@@ -155,7 +172,7 @@ class PoseConfig:
 
 
 @dataclass(frozen=True)
-class ForearmConfig:
+class ForearmConfig(_Group):
     """Where the forearm goes and how its slides move (forearm.py): the frame-by-frame plan,
     shifts, the playing height."""
 
@@ -199,6 +216,7 @@ class ForearmConfig:
     """Gain of the forearm height command on how far the hand has risen above its height."""
 
     def __post_init__(self) -> None:
+        super().__post_init__()
         if self.shift_delay_max_frames < 0 or self.shift_delay_cost < 0:
             raise ValueError(
                 "shift_delay_max_frames and shift_delay_cost must be >= 0, not "
@@ -207,7 +225,7 @@ class ForearmConfig:
 
 
 @dataclass(frozen=True)
-class FingerConfig:
+class FingerConfig(_Group):
     """Each finger's press, hover and lift decisions every step (targets.py)."""
 
     press_lead_frames: int = 1
@@ -271,7 +289,7 @@ class FingerConfig:
 
 
 @dataclass(frozen=True)
-class StrikeConfig:
+class StrikeConfig(_Group):
     """How fast each key is struck, from its note's velocity (strikes.py)."""
 
     push_below_velocity: int = 0
@@ -300,6 +318,7 @@ class StrikeConfig:
     the key and the key goes down from its push, not from its fall."""
 
     def __post_init__(self) -> None:
+        super().__post_init__()
         if not 0 <= self.push_below_velocity <= 128:
             raise ValueError(
                 "push_below_velocity must be a MIDI velocity from 0 (no pushes) to 128, "
@@ -308,7 +327,7 @@ class StrikeConfig:
 
 
 @dataclass(frozen=True)
-class PlanConfig:
+class PlanConfig(_Group):
     """Which hand plan is made and how one is chosen (controller.py, hand_plan.py, coverage.py)."""
 
     hand_planning: Literal["frame", "piece", "split", "best"] = "best"
@@ -365,6 +384,7 @@ class PlanConfig:
     white key from a given hand position."""
 
     def __post_init__(self) -> None:
+        super().__post_init__()
         unknown = [name for name in self.best_candidates if name not in PLAN_CANDIDATES]
         if not self.best_candidates or unknown:
             raise ValueError(
@@ -374,7 +394,7 @@ class PlanConfig:
 
 
 @dataclass(frozen=True)
-class IKConfig:
+class IKConfig(_Group):
     """Each finger's inverse kinematics and the pushes after it (ik.py)."""
 
     iterations: int = 3

@@ -1,6 +1,6 @@
-"""Each finger's actuated joints, the hand's poses, and the sampled postures the IK starts from.
+"""The hand's poses, the sampled postures the IK starts from, and the wrist's command.
 
-A hand plays in one of a few poses (:meth:`PlannerConfig.hand_poses`): the home pose (the
+A hand plays in one of a few poses (:meth:`PoseConfig.hand_poses`): the home pose (the
 wrist straight) and the reach poses (the wrist turned towards the thumb and flexed, which
 spans an octave). For every pose, every finger's joints are sampled uniformly within their
 limits (``PoseConfig.samples`` postures, always with generator seed 0) with the forearm at
@@ -15,9 +15,10 @@ relative to the forearm body. The samples are made once per scene, config and po
   ``y - tip_offset_y[f]``;
 - ``reach`` and ``full_reach`` (5, 2, 2) m: per finger, for a white (0) and a black (1) key,
   the lowest and highest key y minus forearm slide from which the finger presses the key
-  (``reach`` shrunk by ``reach_margin``).
+  (``reach`` shrunk by ``reach_margin``);
+- ``batch``: the samples and lifted postures laid out for the IK
+  (:class:`~pianist.control.planner.ik.FingerBatch`).
 
-and the padded arrays the IK solves with (:class:`~pianist.control.planner.ik.FingerBatch`).
 :func:`hand_poses` makes every hand's poses; the stages that plan and execute are given the
 pose they work in. :func:`set_wrist` and :func:`place_forearm` put a hand in a pose.
 
@@ -215,7 +216,7 @@ _POSTURES_KEPT = 24  # scenes x configs x poses kept per process (~2 MB each)
 def hand_poses(
     m, data, hands: Sequence[Hand], cfg: PlannerConfig, scene_options: SceneOptions
 ) -> list[tuple[HandPose, ...]]:
-    """Every hand's poses (:meth:`PlannerConfig.hand_poses`, the home pose first), each with
+    """Every hand's poses (:meth:`PoseConfig.hand_poses`, the home pose first), each with
     its posture samples (sampled once per scene, config and pose, see :data:`_POSTURES`),
     lifted postures and reach; per hand, in the order of ``hands``. ``data`` is scratch."""
     has_tz = all(hand.tz_qpos is not None for hand in hands)
