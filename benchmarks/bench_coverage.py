@@ -230,11 +230,11 @@ def main() -> None:
             print(f"{name[:40]:40s} {cells}", flush=True)
         print(f"{'plan':40s} {'plan F1':>7s} {'left out':>8s} {'in shift':>8s}")
         for label in labels:
-            cells = [
+            means = [
                 float(np.mean([r["plan_variants"][label][k] for r in rows.values()]))
                 for k in ("plan_f1", "left_out_share", "in_shift_share")
             ]
-            print(f"{label:40s} {cells[0]:7.3f} {cells[1]:8.3f} {cells[2]:8.3f}")
+            print(f"{label:40s} {means[0]:7.3f} {means[1]:8.3f} {means[2]:8.3f}")
     keys = [k for k, v in next(iter(rows.values())).items() if isinstance(v, float)]
     mean = {k: float(np.mean([r[k] for r in rows.values() if k in r])) for k in keys}
     totals = {

@@ -17,6 +17,7 @@ from __future__ import annotations
 import argparse
 import json
 import time
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -30,7 +31,9 @@ ORIGINAL_STEPS_PER_S = 210.0
 def bench_single(song: str, physics: str, repeats: int) -> dict[str, float]:
     env = PianoEnv(song, physics=physics)
     rng = np.random.default_rng(0)
-    actions = rng.uniform(-1, 1, (env.num_steps, env.action_space.shape[0]))
+    shape = env.action_space.shape
+    assert shape is not None  # a Box
+    actions = rng.uniform(-1, 1, (env.num_steps, shape[0]))
     ctrl = env._ctrl_low + (actions[:, :-1] + 1) * env._ctrl_half
     raw = mujoco.MjData(env.model)
     env_rates, physics_rates = [], []
@@ -64,7 +67,9 @@ def bench_vector(song: str, physics: str, num_envs: int, repeats: int, steps: in
     venv.reset(seed=0)
     rates = []
     for _ in range(repeats):
-        actions = rng.uniform(-1, 1, (steps, *venv.action_space.shape))
+        shape = venv.action_space.shape
+        assert shape is not None  # a Box
+        actions = rng.uniform(-1, 1, (steps, *shape))
         start = time.perf_counter()
         for action in actions:
             venv.step(action)
@@ -82,7 +87,7 @@ def main() -> None:
     parser.add_argument("--json", help="also write the results to this file")
     args = parser.parse_args()
 
-    results: dict[str, dict] = {"song": args.song, "original_steps_per_s": ORIGINAL_STEPS_PER_S}
+    results: dict[str, Any] = {"song": args.song, "original_steps_per_s": ORIGINAL_STEPS_PER_S}
     print(f"song {args.song}, random actions, median of {args.repeats} runs")
     header = (
         f"{'preset':9s} {'env st/s':>9s} {'physics st/s':>13s} {'overhead':>9s} {'vs orig':>8s}"

@@ -127,7 +127,7 @@ def pianoplayer_fingering(song: Song) -> tuple[Song, float] | None:
     labelled = 0
     for n in song.notes:
         finger = None
-        for onset, number in found.get((n.hand, n.pitch), []):
+        for onset, number in found.get((n.hand or "", n.pitch), []):
             if abs(onset - n.onset_s) < 0.06:  # pianoplayer staggers chord notes slightly
                 finger = number - 1 if n.hand == "right" else number + 4
                 break

@@ -57,7 +57,7 @@ PAPER_BC_ETUDE12 = "<= ~0.15"
 
 
 def evaluate_fingertip(
-    policy: Any, songs: list[str], forearm: str | None = None, physics: str = "fast"
+    policy: Any, songs: list[str], forearm: Any = None, physics: str = "fast"
 ) -> dict[str, dict[str, float]]:
     """Each song played once (seed 0) by a fingertip policy (or its folder); ``forearm``:
     where its forearms go (None: the controller's default, the plan's path)."""
@@ -66,7 +66,7 @@ def evaluate_fingertip(
 
     rows: dict[str, dict[str, float]] = {}
     for song in songs:
-        controller = FingertipController(policy, forearm=forearm)  # type: ignore[arg-type]
+        controller = FingertipController(policy, forearm=forearm)
         m = play(song, controller, physics=physics, seed=0).metrics
         rows[song] = {
             "f1": m["f1"],
@@ -108,7 +108,7 @@ def cmd_eval(args: argparse.Namespace) -> dict[str, Any]:
         forearm = fingertip.FingertipController(policy, forearm=args.forearm).forearm
     else:
         policy = load_policy(args.policy)
-        play_all = evaluate  # type: ignore[assignment]
+        play_all = evaluate
         forearm = None
     result: dict[str, Any] = {
         "policy": str(args.policy),

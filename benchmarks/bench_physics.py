@@ -13,13 +13,14 @@ import argparse
 import dataclasses
 import json
 import time
+from typing import Any
 
 import mujoco
 import numpy as np
 
 from pianist.sim.scene import FAITHFUL, SceneOptions, build_scene
 
-STEPS = (
+STEPS: tuple[tuple[str, dict[str, Any]], ...] = (
     ("faithful", {}),
     ("+ sleeping islands", {"sleep": True}),
     ("+ no hand frictionloss", {"hand_frictionloss": False}),

@@ -36,11 +36,13 @@ from __future__ import annotations
 import argparse
 import json
 import time
+from typing import cast
 
 import numpy as np
 
 from pianist.control import NoisyController
 from pianist.control.planner import IKPlanner, PlannerConfig, forget_plans
+from pianist.env import PianoEnv
 from pianist.eval import f1_lost_by_kind, run_episode
 from pianist.eval.session import make_env
 from pianist.music import list_songs
@@ -74,7 +76,7 @@ def noisy_f1(song: str, physics: str, episodes: int, buffer_s: float = 0.0) -> t
     ``buffer_s``: the F1 of the song's own steps)."""
     noisy = NoisyController(IKPlanner(), NOISE_STD)
     env = make_env(song, noisy, physics=physics, initial_buffer_s=buffer_s)
-    key = "song_f1" if env.config.lead_in_steps else "f1"
+    key = "song_f1" if cast(PianoEnv, env.unwrapped).config.lead_in_steps else "f1"
     f1 = [run_episode(env, noisy, seed=i).metrics()[key] for i in range(episodes)]
     return float(np.mean(f1)), float(np.std(f1))
 
@@ -102,7 +104,7 @@ def plan_seconds_per_minute(song: str, physics: str, repeats: int) -> float:
         start = time.perf_counter()
         planner.reset(env, seed=0)
         times.append(time.perf_counter() - start)
-    minutes = planner.goal.num_frames * env.config.control_timestep_s / 60.0
+    minutes = planner.goal.num_frames * planner.dt / 60.0
     return float(np.median(times)) / minutes
 
 
@@ -121,7 +123,8 @@ def _timed_episode(song: str, physics: str, config: PlannerConfig) -> tuple[dict
 
 
 def bench_song(song: str, physics: str, repeats: int, compare_tape: bool = False) -> dict:
-    rates, shares, untaped, metrics = [], [], [], {}
+    rates, shares, untaped = [], [], []
+    metrics: dict = {}
     for _ in range(repeats):
         metrics, rate, share = _timed_episode(song, physics, PlannerConfig())
         rates.append(rate)

@@ -29,6 +29,7 @@ import numpy as np
 
 from pianist.agents.practice import CorrectedPlanner, PracticeConfig, practise
 from pianist.control.planner import IKPlanner, PlannerConfig
+from pianist.control.planner.coverage import playable_mask
 from pianist.eval.session import make_env, play
 from pianist.music import load_song
 
@@ -57,7 +58,7 @@ def _plan_ceiling(song, physics: str, hand_planning: str) -> float:
     env = make_env(song, planner, physics=physics)
     env.reset(seed=0)
     planner.reset(env, seed=0)
-    playable = sum(hand.playable_keyframes(planner) for hand in planner.hands)
+    playable = int(playable_mask(planner).sum())
     return playable / max(int(planner.goal.keys.sum()), 1)
 
 
@@ -100,7 +101,7 @@ def main() -> None:
         result = practise(song, config, stop_after_s=60.0 * args.minutes)
         wall = time.perf_counter() - start
         history = result.history
-        noisy = {"planner": [], "practised": []}
+        noisy: dict[str, list[float]] = {"planner": [], "practised": []}
         for seed in range(args.noise_episodes):
             for label, table in (("planner", None), ("practised", result.table)):
                 controller = (
@@ -166,7 +167,7 @@ def main() -> None:
 
         fig, ax = plt.subplots(figsize=(7, 4))
         # Twenty colours, then the line style changes: every curve tells from the others.
-        colours = plt.get_cmap("tab20").colors
+        colours = plt.get_cmap("tab20").colors  # type: ignore[attr-defined]
         for i, (name, row) in enumerate(results.items()):
             h = row["history"]
             seconds = [r["seconds"] / 60 for r in h]

@@ -59,8 +59,8 @@ def main() -> None:
     args = parser.parse_args()
     names = song_list(parser, args.songs, args.suite)
     presets = preset_list(parser, args.presets)
-    columns = ("whole hand f1", "straight f1", "gain", "turned share", "ceiling f1")
-    columns += ("straight ceiling f1",)
+    columns: tuple[str, ...] = ("whole hand f1", "straight f1", "gain", "turned share")
+    columns += ("ceiling f1", "straight ceiling f1")
     settings = {"suite": None if args.songs else args.suite, "presets": presets}
     song_table(names, presets, row, columns, args.json, settings, width=19)
 

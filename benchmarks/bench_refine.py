@@ -18,12 +18,14 @@ import argparse
 import dataclasses
 import json
 import time
+from typing import Any
 
 import numpy as np
 
 from pianist.control.planner import IKPlanner
 from pianist.control.refine import Refiner
 from pianist.control.registry import parse_controller
+from pianist.control.specs import RefineSpec
 from pianist.eval.session import play
 
 from arguments import preset_list, song_list  # isort: skip  (beside this script)
@@ -55,6 +57,7 @@ def main() -> None:
         options = parse_controller(f"refine:{args.refine}" if args.refine else "refine")
     except ValueError as exc:
         parser.error(" ".join(str(exc).split()))
+    assert isinstance(options, RefineSpec)
     results: dict = {"options": dataclasses.asdict(options), "songs": {}}
     print(
         f"{'song':36s} {'preset':8s} {'F1':>6s} {'+ref':>6s} {'gain':>6s} {'R':>6s} "
@@ -77,7 +80,10 @@ def main() -> None:
                 flush=True,
             )
         f1 = np.array(gains)
-        summary = {"planner_f1": float(f1[:, 0].mean()), "refine_f1": float(f1[:, 1].mean())}
+        summary: dict[str, Any] = {
+            "planner_f1": float(f1[:, 0].mean()),
+            "refine_f1": float(f1[:, 1].mean()),
+        }
         for who in ("planner", "refine"):
             runs = [results["songs"][song][preset][who] for song in songs]
             summary[f"{who}_f1_lost"] = {

@@ -24,6 +24,7 @@ import statistics
 import time
 from datetime import date
 from pathlib import Path
+from typing import Any
 
 from pianist.control.registry import parse_controller, speeds_table
 from pianist.eval.session import play
@@ -116,7 +117,7 @@ def main() -> None:
                     flush=True,
                 )
     shorter = ", ".join(f"{k} {v:g} s" for k, v in KINDS.items() if v and k in kinds)
-    speeds = {
+    speeds: dict[str, Any] = {
         "date": date.today().isoformat(),
         "machine": f"{platform.machine()}, {os.cpu_count()} cores",
         "what": (

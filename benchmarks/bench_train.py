@@ -63,6 +63,7 @@ import dataclasses  # noqa: E402
 import json  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
+from typing import Any  # noqa: E402
 
 import numpy as np  # noqa: E402
 
@@ -158,6 +159,8 @@ def use_planner(run: str | Path | None) -> None:
             )
         else:  # a run snapshotted when the planner was one module
             spec = importlib.util.spec_from_file_location(name, folder.with_suffix(".py"))
+        if spec is None or spec.loader is None:
+            raise SystemExit(f"no planner snapshot in {run}")
         module = importlib.util.module_from_spec(spec)
         sys.modules[name] = module
         spec.loader.exec_module(module)
@@ -169,7 +172,9 @@ def snapshot_planner(run: str | Path) -> None:
     import importlib.util
     import shutil
 
-    package = Path(importlib.util.find_spec("pianist.control.planner").origin).parent
+    found = importlib.util.find_spec("pianist.control.planner")
+    assert found is not None and found.origin is not None  # the package is installed
+    package = Path(found.origin).parent
     Path(run).mkdir(parents=True, exist_ok=True)
     target = Path(run) / PLANNER_SNAPSHOT
     shutil.rmtree(target, ignore_errors=True)
@@ -191,7 +196,7 @@ def learn(
 
     cfg = get_preset(preset, seed=seed)
     if eval_physics:
-        cfg = dataclasses.replace(cfg, eval_physics=eval_physics)
+        cfg = dataclasses.replace(cfg, eval_physics=eval_physics)  # type: ignore[arg-type]
     if eval_interval:
         cfg = dataclasses.replace(cfg, eval_interval=eval_interval)
     if residual_scale is not None:
@@ -411,7 +416,7 @@ def evaluate_policies(
     physics = physics or config["config"]["task"]["physics"]
     final = PolicyController(run, physics=physics)
     env = final.make_env(config["song"])
-    controllers = {"final": final}
+    controllers: dict[str, Any] = {"final": final}
     if (Path(run) / "best").is_dir():
         controllers["best"] = PolicyController(Path(run) / "best", physics=physics)
     if config["config"]["task"]["residual"]:
