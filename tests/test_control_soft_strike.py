@@ -1,21 +1,23 @@
-"""The planner's pushed strikes (pianist.control.planner.strikes): a soft note's key brought
-down along a planned descent at the speed its velocity maps to, the finger's depth fed back
-from the key's angle."""
+"""The planner's pushed strikes (pianist.control.planner.strikes, strike_prediction): a soft
+note's key brought down along a planned descent at the speed its velocity maps to, each
+step's push chosen by simulating the step ahead."""
 
 import dataclasses
 
+import mujoco
 import numpy as np
 import pytest
 
 from pianist.control.planner import IKPlanner, PlannerConfig
+from pianist.control.planner.strike_prediction import Push, chosen_offsets, predicted_angles
 from pianist.control.planner.strikes import (
+    FIRST_PUSH_STEP,
     SOUND_ANGLE_RAD,
     plan_strikes,
     planned_angle,
-    push_depth,
 )
 from pianist.env.loudness import KEY_LEVER_M, speed_to_velocity, velocity_to_speed
-from pianist.eval.session import play
+from pianist.eval.session import make_env, play
 from pianist.media.results import played_dynamics
 from pianist.music import GoalFrames, load_song
 from pianist.music.pitch import NUM_KEYS
@@ -69,34 +71,74 @@ def test_a_song_of_one_velocity_or_no_threshold_pushes_nothing():
     assert not plan_strikes(mixed, push_below=0, lag_frames=0).pushed
 
 
-def test_the_push_goes_deeper_when_the_key_lags_its_plan_and_shallower_when_ahead():
-    plan = plan_strikes(_goal({C4: [(10, 14, 40)], E4: [(10, 14, 100)]}), 90, 0)
-    full, share, lever = 0.025, 0.68, 0.12
-    first = push_depth(plan, 12, C4, int(plan.start[12, C4]), 0.0, np.nan, full, share, lever, 1.0)
-    assert first > share * full  # from the breakaway depth, by the first step's descent
-    wanted = planned_angle(plan, 12, C4, 9)
-    on_plan = push_depth(plan, 12, C4, 9, wanted, 0.02, full, share, lever, 1.0)
-    behind = push_depth(plan, 12, C4, 9, wanted - 0.01, 0.02, full, share, lever, 1.0)
-    ahead = push_depth(plan, 12, C4, 9, wanted + 0.01, 0.02, full, share, lever, 1.0)
-    assert on_plan == pytest.approx(0.02)
-    assert ahead < on_plan < behind
-    # Never past the full depth, nor shallower than the breakaway depth.
-    assert push_depth(plan, 12, C4, 9, 0.0, full, full, share, lever, 5.0) == full
-    assert push_depth(plan, 12, C4, 9, 1.0, 0.0, full, share, lever, 1.0) == share * full
+def test_a_push_that_would_start_before_the_hands_arrive_is_struck():
+    # A soft note at the first frame cannot rest on its key first: struck at full speed.
+    plan = plan_strikes(_goal({C4: [(0, 4, 40), (12, 14, 40)], E4: [(0, 4, 100)]}), 90, 0)
+    assert not plan.rate[0:5, C4].any()
+    assert plan.rate[12, C4] > 0 and plan.start[12, C4] >= FIRST_PUSH_STEP
+
+
+def test_the_offset_chosen_meets_the_target_on_the_predicted_response():
+    offsets = (-0.1, 0.0, 0.1, 0.2)
+    angles = np.array([[0.00, 0.01], [0.01, 0.02], [0.03, 0.02], [0.05, 0.06]])
+    chosen = chosen_offsets(angles, offsets, np.array([0.02, 0.04]))
+    # Push 0 meets 0.02 halfway between 0.0 (0.01) and 0.1 (0.03); push 1's response is
+    # flat from 0.0 to 0.1, and 0.04 lies halfway from 0.1 (0.02) to 0.2 (0.06).
+    np.testing.assert_allclose(chosen, [0.05, 0.15])
+    # Out of the response's range: the nearest end.
+    np.testing.assert_allclose(chosen_offsets(angles, offsets, np.array([-1.0, 1.0])), [-0.1, 0.2])
+    # A response that dips (the simulator's noise) is read as non-decreasing.
+    dipping = np.array([[0.0], [0.02], [0.01], [0.04]])
+    assert chosen_offsets(dipping, offsets, np.array([0.015]))[0] == pytest.approx(-0.025)
+
+
+def test_the_prediction_is_the_step_the_environment_then_takes():
+    """Holding the first chord of c-major-chords, a finger's commands offset up and down:
+    the predicted key angles leave the live state alone, fall as the finger is lifted, and
+    the environment's own step with one of them ends where it was predicted."""
+    planner = IKPlanner()
+    env = make_env(load_song("c-major-chords"), planner, physics="fast")
+    observation, _ = env.reset(seed=0)
+    planner.reset(env, seed=0)
+    handle = planner.handle
+    model, data = handle.model, handle.data
+    goal = handle.goal
+    first = int(np.flatnonzero(goal.keys.any(axis=1))[0])
+    for _ in range(first + 6):
+        observation, *_ = env.step(planner.act(observation))
+    key = int(np.flatnonzero(goal.keys[handle.step_index])[0])
+    assert data.qpos[planner.key_qpos[key]] >= planner.key_threshold[key]  # held down
+    hand = next(h for h in planner.hands if h.own_keys(goal)[handle.step_index, key])
+    finger = hand.fingers[int(goal.fingers[handle.step_index, key]) - hand.finger_offset]
+    direction = np.ones(finger.dof) / np.sqrt(finger.dof)  # flexing every joint: down
+    push = Push(finger.actuators, direction, int(planner.key_qpos[key]), 0.0)
+    ctrl = np.array(data.ctrl)
+    state = data.qpos.copy(), data.qvel.copy(), data.time
+    offsets = (-1.5, 0.0)
+    angles = predicted_angles(model, data, mujoco.MjData(model), ctrl, [push], offsets, 10)
+    np.testing.assert_array_equal(data.qpos, state[0])
+    np.testing.assert_array_equal(data.qvel, state[1])
+    assert data.time == state[2]
+    assert angles[0, 0] < angles[1, 0] - 0.01  # lifted, the key rises
+    command = ctrl.copy()
+    command[push.actuators] += offsets[0] * direction
+    action = np.append(handle.ctrl_to_action(command), -1.0).astype(np.float32)
+    env.step(action)
+    assert data.qpos[push.key_qpos] == pytest.approx(angles[0, 0], abs=1e-5)
 
 
 @pytest.mark.parametrize("physics", ["fast", "faithful"])
 def test_pushed_notes_sound_near_the_velocity_asked_for(physics):
-    """The crescendo (30 up to 110 and back): the notes pushed sound within 20 of their
-    velocity in the median and follow it (rank correlation), where the plain planner strikes
-    them all at ~90."""
+    """The crescendo (30 up to 110 and back): the notes pushed sound within 12 of their
+    velocity in the median (measured: ~5) and follow it (rank correlation ~0.6), where the
+    plain planner strikes them all at ~90; the F1 stays within 0.01 of the plain planner's."""
     result = play("crescendo-scale", IKPlanner(PUSHED), physics=physics, seed=0)
     pairs = played_dynamics(result)[2]
     score = np.array([s.velocity for _, s in pairs])
     performed = np.array([p.velocity for p, _ in pairs])
     pushed = score < PUSHED.strikes.push_below_velocity
     assert pushed.sum() >= 10
-    assert np.median(np.abs(performed[pushed] - score[pushed])) <= 20
+    assert np.median(np.abs(performed[pushed] - score[pushed])) <= 12
     plain = play("crescendo-scale", IKPlanner(), physics=physics, seed=0)
     plain_pairs = played_dynamics(plain)[2]
     plain_error = np.median(
@@ -104,7 +146,8 @@ def test_pushed_notes_sound_near_the_velocity_asked_for(physics):
     )
     assert np.median(np.abs(performed[pushed] - score[pushed])) < plain_error - 10
     rho = played_dynamics(result)[3]["velocity_rank_correlation"]
-    assert rho >= 0.4
+    assert rho >= 0.5
+    assert result.metrics["f1"] >= plain.metrics["f1"] - 0.01
 
 
 def test_a_song_of_one_velocity_plays_as_without_pushes():

@@ -294,24 +294,25 @@ class StrikeConfig(_Group):
 
     push_below_velocity: int = 0
     """Notes softer than this MIDI velocity are *pushed* (:mod:`strikes`): their key is
-    brought down along a planned descent at the speed their velocity maps to, the finger's
-    depth fed back from the key's angle. 0: none; in a song of one velocity throughout none
-    is pushed. Louder notes are struck at the servo's full speed."""
+    brought down along a planned descent at the speed their velocity maps to, each step's
+    push chosen by predicting the key's angle with the simulator (:mod:`strike_prediction`).
+    0: none; in a song of one velocity throughout none is pushed. Louder notes are struck at
+    the servo's full speed."""
     push_speed_scale: float = 1.0
     """The key speeds a push plans, as a share of those the velocities map to (its
     calibration, ``benchmarks/calibrate_strikes.py``)."""
     push_breakaway_share: tuple[float, float] = (0.68, 0.5)
-    """The share of its key's press depth a push starts from, white and black keys: a finger
-    resting on a white key starts moving it only at ~70 % of the press depth (18 mm of 25),
-    on a black key at ~50 % (of 45 mm; from 0.68 a black key went down within a step)."""
-    push_gain: float = 1.0
-    """m of depth a push adds per m of its press point's drop still missing to the planned
-    angle at the step's end."""
+    """The share of its key's press depth a pushing finger is sent to before its push offset,
+    white and black keys: a finger resting on a white key starts moving it only at ~70 % of
+    the press depth (18 mm of 25), on a black key at ~50 % (of 45 mm)."""
     push_lag_frames: int = 0
     """Frames before its note's frame a pushed key should sound (the servo's lag)."""
     push_grace_frames: int = 2
     """Steps after its planned sounding that a pushed note's finger is still not pushed
     harder for not sounding its key (``unsounded_push_rad``, ``restrike_push_rad``)."""
+    push_offsets_rad: tuple[float, ...] = (-0.1, 0.0, 0.1, 0.2, 0.35, 0.5)
+    """The push offsets tried at each step of a push (rad along the finger's descent
+    direction from its breakaway posture), ascending: one simulated control step each."""
     push_rest_m: float = -0.008
     """Height above the key top a finger waiting for its push is sent: below it, as the
     finger's servo falls ~8 mm short of a target above the keys, so that the finger rests on
@@ -323,6 +324,11 @@ class StrikeConfig(_Group):
             raise ValueError(
                 "push_below_velocity must be a MIDI velocity from 0 (no pushes) to 128, "
                 f"not {self.push_below_velocity}"
+            )
+        offsets = self.push_offsets_rad
+        if len(offsets) < 2 or any(b <= a for a, b in zip(offsets, offsets[1:], strict=False)):
+            raise ValueError(
+                f"push_offsets_rad must be two or more ascending offsets, not {offsets}"
             )
 
 

@@ -59,10 +59,11 @@ from pianist.control.planner.hand import FingerMemory, Hand
 from pianist.control.planner.hand_order import uncross_hands
 from pianist.control.planner.hand_plan import HandPlan
 from pianist.control.planner.hand_split import HandReach, SplitCosts, split_hands
-from pianist.control.planner.ik import finger_controls, solve_fingers
+from pianist.control.planner.ik import descent_directions, finger_controls, solve_fingers
 from pianist.control.planner.plans import PLANS, CachedPlan, Plan, PlanCache
 from pianist.control.planner.postures import HandPose, hand_poses, set_wrist
 from pianist.control.planner.rehearsal import Replay, f1_lost, rehearse
+from pianist.control.planner.strike_prediction import Push, apply_pushes
 from pianist.control.planner.strikes import plan_strikes
 from pianist.control.planner.targets import fingertip_targets
 from pianist.control.scoring import step_f1
@@ -176,6 +177,7 @@ class IKPlanner(BaseController):
         self.handle = handle
         self.model: mujoco.MjModel = handle.model
         self.scratch = mujoco.MjData(self.model)
+        self.predict_work = mujoco.MjData(self.model)  # predicted pushes' simulated steps
         self.goal = goal
         self.dt = handle.control_timestep_s
         cfg, m = self.config, self.model
@@ -623,6 +625,7 @@ class IKPlanner(BaseController):
             # their servos lag behind their commands by about a control step.
             scratch.qpos[hand.tx_qpos] += cfg.forearm.forearm_lead_s * handle.data.qvel[hand.tx_dof]
         mujoco.mj_kinematics(m, scratch)
+        pushes: list[Push] = []
         for i, hand in enumerate(self.hands):
             (pose_index, pose), hand_cfg = poses[i], settings[i]
             targets, active, memory = fingertip_targets(
@@ -650,6 +653,29 @@ class IKPlanner(BaseController):
                 hand_cfg,
             )
             ctrl[hand.finger_actuators] = finger_controls(hand, angles)
+            pushing = np.flatnonzero(np.isfinite(memory.push_target)).tolist()
+            for f, direction in zip(
+                pushing, descent_directions(m, scratch, hand, pushing), strict=True
+            ):
+                key = int(memory.push_key[f])
+                pushes.append(
+                    Push(
+                        hand.fingers[f].actuators,
+                        direction,
+                        int(self.key_qpos[key]),
+                        float(memory.push_target[f]),
+                    )
+                )
+        if pushes:
+            ctrl = apply_pushes(
+                m,
+                handle.data,
+                self.predict_work,
+                ctrl,
+                pushes,
+                cfg.strikes.push_offsets_rad,
+                handle.config.substeps,
+            )
         action = np.empty(m.nu + 1)
         action[:-1] = handle.ctrl_to_action(ctrl)
         action[-1] = 1.0 if self.goal.sustain[press_frame] else -1.0

@@ -182,11 +182,10 @@ class FingerMemory:
     active: np.ndarray = field(default_factory=lambda: np.zeros(FINGERS_PER_HAND, dtype=bool))
     """bool: which fingers had a target this step (the others took their lifted posture)."""
     push_key: np.ndarray = field(default_factory=_none_int)
-    """int: the key of the soft note a finger is pushing (-1: none, see :mod:`strikes`)."""
-    push_sound: np.ndarray = field(default_factory=_none_int)
-    """int: the step that pushed key should sound at."""
-    push_depth: np.ndarray = field(default_factory=lambda: np.zeros(FINGERS_PER_HAND))
-    """m: the push's depth sent last step."""
+    """int: the key of the soft note a finger pushed last (-1: none, see :mod:`strikes`)."""
+    push_target: np.ndarray = field(default_factory=lambda: np.full(FINGERS_PER_HAND, np.nan))
+    """rad: the angle a predicted push aims its key at by this step's end (NaN: no predicted
+    push this step, :mod:`strike_prediction`)."""
 
     def copy(self) -> FingerMemory:
         """A copy whose arrays share nothing with this one."""
@@ -195,7 +194,8 @@ class FingerMemory:
     def equals(self, other: FingerMemory) -> bool:
         """Whether every array is the same."""
         return all(
-            np.array_equal(getattr(self, f.name), getattr(other, f.name)) for f in fields(self)
+            np.array_equal(getattr(self, f.name), getattr(other, f.name), equal_nan=True)
+            for f in fields(self)
         )
 
 

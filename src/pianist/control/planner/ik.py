@@ -252,6 +252,22 @@ def solve_fingers(
     return angles
 
 
+def descent_directions(m, scratch, hand: Hand, fingers: Sequence[int]) -> list[np.ndarray]:
+    """Per finger of ``fingers`` (0 thumb .. 4), the unit direction (its ``dof`` actuator
+    angles) that lowers its fingertip fastest, at the posture ``scratch`` holds."""
+    mujoco.mj_kinematics(m, scratch)
+    mujoco.mj_comPos(m, scratch)
+    jacp = np.zeros((3, m.nv))
+    directions = []
+    for f in fingers:
+        finger = hand.fingers[f]
+        mujoco.mj_jacSite(m, scratch, jacp, None, finger.site)
+        down = -finger.jacobian(jacp)[2]
+        norm = float(np.linalg.norm(down))
+        directions.append(down / norm if norm > 0 else down)
+    return directions
+
+
 def finger_controls(hand: Hand, angles: np.ndarray) -> np.ndarray:
     """The hand's finger commands (rad), thumb to little finger in the order of
     ``hand.finger_actuators``, from :func:`solve_fingers`' padded (5, D) angles."""

@@ -12,14 +12,14 @@ descent of its key:
    angle rises at that rate along a line through the angle where it sounds at the end of the
    note's step (its frame less the servo's lag), from rest to the bottom of its travel. The
    push starts at the step where that line leaves rest.
-2. **Execute** (:func:`push_depth`, each step): the fingers are position servos that fall well
-   short of their targets under a key's preloaded spring (a finger resting on a key starts
-   moving it only once sent ~70 % of the press depth below its top, ~50 % on a black key), so
-   the finger's depth is not planned but fed back: it starts at that breakaway depth and,
-   each step, goes deeper by the press point's drop still missing to the planned angle at
-   the step's end (the key's angle read from the simulator). Before its push the finger
-   rests on the key; once the key has sounded it holds it at the full press depth like any
-   other finger.
+2. **Execute** (:mod:`strike_prediction`, each step): the fingers are position servos that
+   fall well short of their targets under a key's preloaded spring, and a key that breaks
+   away covers most of its travel within a control step, so the finger's depth is chosen by
+   predicting the step: the finger is sent to the breakaway depth (a finger resting on a
+   key starts moving it only once sent ~70 % of the press depth below its top, ~50 % on a
+   black key) and pushed on along its descent direction by the offset whose simulated step
+   ends nearest the planned angle. Before its push the finger rests on the key; once the
+   key has sounded it holds it at the full press depth like any other finger.
 
 Louder notes than ``StrikeConfig.push_below_velocity`` are struck at full speed, and so is
 every note of a song of one velocity throughout (it plays as without pushes).
@@ -30,7 +30,6 @@ Output: a :class:`StrikePlan`, (T, 88) arrays read by the fingertip targets (:mo
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -41,6 +40,11 @@ from pianist.sim import constants as C
 
 #: (88,) rad: the angle at which each key sounds (its activation threshold).
 SOUND_ANGLE_RAD = C.KEY_MAX_ANGLE_RAD - C.KEY_ACTIVATION_THRESHOLD_RAD
+#: A predicted push aims its key this share of a step's planned rise past the angle where it
+#: sounds once it is due, so that it sounds in that step and not just after it.
+PUSH_SOUND_MARGIN = 0.3
+#: The first step a push may start at: before it the hands are still arriving at the keys.
+FIRST_PUSH_STEP = 2
 
 
 @dataclass(frozen=True)
@@ -66,7 +70,10 @@ class StrikePlan:
 
 
 def plan_strikes(
-    goal: GoalFrames, push_below: int, lag_frames: int, speed_scale: float = 1.0
+    goal: GoalFrames,
+    push_below: int,
+    lag_frames: int,
+    speed_scale: float = 1.0,
 ) -> StrikePlan:
     """The planned descent of every due note's key from its MIDI velocity.
 
@@ -97,6 +104,10 @@ def plan_strikes(
     # The first step whose end the planned angle is above rest.
     lead = SOUND_ANGLE_RAD[None, :] / np.where(rate > 0, rate, np.inf)
     start = sound - np.ceil(lead - 1e-9).astype(np.int64) + 1
+    # A push that would start while the hands are still arriving at the first keys (the
+    # episode's first steps) is struck instead: it could not rest on its key first.
+    early = start < FIRST_PUSH_STEP
+    rate[early & (rate > 0)] = 0.0
     return StrikePlan(rate=rate, sound=sound, start=np.where(rate > 0, start, sound))
 
 
@@ -105,37 +116,3 @@ def planned_angle(plan: StrikePlan, frame: int, key: int, step: int) -> float:
     angle where it sounds at the end of its ``sound`` step, from rest to the bottom."""
     angle = SOUND_ANGLE_RAD[key] + plan.rate[frame, key] * (step - plan.sound[frame, key])
     return float(min(max(angle, 0.0), C.KEY_MAX_ANGLE_RAD[key]))
-
-
-def push_depth(
-    plan: StrikePlan,
-    frame: int,
-    key: int,
-    now: int,
-    key_angle: float,
-    previous: float,
-    depth_m: float,
-    breakaway_share: float,
-    lever_m: float,
-    gain: float,
-) -> float:
-    """The depth below its key's top (m) a pushing finger is sent at step ``now``.
-
-    Args:
-        plan, frame, key: the note (:class:`StrikePlan`).
-        now: the step.
-        key_angle: the key's angle now (rad, 0 up).
-        previous: the depth sent the step before, NaN at the push's first step.
-        depth_m: the key's full press depth (m).
-        breakaway_share: the share of ``depth_m`` a push starts from.
-        lever_m: the key's hinge-to-press-point length (m).
-        gain: m of depth added per m of the press point's drop still missing.
-    Returns:
-        The depth (m), from the breakaway depth to the full depth: the depth before (the
-        breakaway depth at first) plus ``gain`` times the drop from the key's angle now to
-        its planned angle at the end of this step.
-    """
-    low = breakaway_share * depth_m
-    base = low if math.isnan(previous) else previous
-    missing = planned_angle(plan, frame, key, now) - key_angle
-    return float(min(max(base + gain * lever_m * missing, low), depth_m))

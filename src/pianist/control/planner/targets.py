@@ -22,7 +22,7 @@ import numpy as np
 
 from pianist.control.planner.config import FINGERS_PER_HAND, PlannerConfig, PlannerState
 from pianist.control.planner.hand import FingerMemory, Hand
-from pianist.control.planner.strikes import push_depth
+from pianist.control.planner.strikes import PUSH_SOUND_MARGIN, planned_angle
 from pianist.sim import constants as C
 
 if TYPE_CHECKING:
@@ -80,6 +80,7 @@ def fingertip_targets(
     targets = lift_tips + origin
     active = np.zeros(FINGERS_PER_HAND, dtype=bool)
     mem.pressing = np.zeros(FINGERS_PER_HAND, dtype=bool)
+    mem.push_target = np.full(FINGERS_PER_HAND, np.nan)
     let_up = mem.state == FingerState.RESTRIKING  # last step's states
     mem.state = np.full(FINGERS_PER_HAND, FingerState.LIFTED, dtype=np.int8)
     if plan.free[now]:
@@ -275,30 +276,21 @@ def _push(
     cfg: PlannerConfig,
 ) -> float:
     """The fingertip's target height (m) at step ``now`` for the pushed note of ``key``
-    due at ``frame``, not sounded yet: resting on the key until its push starts, then
-    :func:`~pianist.control.planner.strikes.push_depth` below its top (the push's
-    progress kept per finger in ``mem``'s ``push_key``, ``push_sound``, ``push_depth``)."""
+    due at ``frame``, not sounded yet: resting on the key until its push starts, then at
+    the key's breakaway depth, with the angle the key should reach by the step's end kept
+    in ``mem.push_target`` (:mod:`strike_prediction` pushes the finger on from there)."""
     finger = int(planner.fingers[frame, key]) - hand.finger_offset
     top = planner.key_top_z[key] + C.FINGERTIP_CAPSULE_RADIUS_M
     plan = planner.strikes
     if now < plan.start[frame, key]:
         return top + cfg.strikes.push_rest_m
-    sound = int(plan.sound[frame, key])
-    same = mem.push_key[finger] == key and mem.push_sound[finger] == sound
-    depth = push_depth(
-        plan,
-        frame,
-        key,
-        now,
-        float(planner.handle.data.qpos[planner.key_qpos[key]]),
-        float(mem.push_depth[finger]) if same else np.nan,
-        float(planner.key_depth[key]),
-        cfg.strikes.push_breakaway_share[int(C.BLACK_KEY_MASK[key])],
-        float(planner.key_point[key, 0] + C.WHITE_KEY_LENGTH_M / 2),
-        cfg.strikes.push_gain,
-    )
-    mem.push_key[finger], mem.push_sound[finger], mem.push_depth[finger] = key, sound, depth
-    return top - depth
+    # The planned line is raised by a margin so that the key sounds within its step and not
+    # just after it.
+    angle = planned_angle(plan, frame, key, now) + PUSH_SOUND_MARGIN * plan.rate[frame, key]
+    mem.push_key[finger] = key
+    mem.push_target[finger] = min(angle, C.KEY_MAX_ANGLE_RAD[key])
+    share = cfg.strikes.push_breakaway_share[int(C.BLACK_KEY_MASK[key])]
+    return top - share * float(planner.key_depth[key])
 
 
 def press_point(
