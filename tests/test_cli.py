@@ -577,16 +577,16 @@ def test_train_stops_when_its_time_budget_runs_out(tmp_path, capsys):
 
 
 def test_play_says_how_far_the_dynamics_are_from_a_scores_with_loudness(tmp_path, capsys):
-    """A score whose velocities differ gets a dynamics line, with the option that plays
-    them; a score of one velocity gets none."""
+    """A score whose velocities differ gets a dynamics line (and, played with every note
+    struck, the default that plays them); a score of one velocity gets none."""
     args = ["--physics", "fast", "--seconds", "2"]
     assert main(["play", "voiced-melody", "--out", str(tmp_path / "a"), *args]) == 0
     out = capsys.readouterr().out
-    assert "dynamics: velocity error" in out
-    assert "--controller planner:push_below_velocity=90" in out
-    pushed = ["--controller", "planner:push_below_velocity=90"]
-    assert main(["play", "voiced-melody", "--out", str(tmp_path / "b"), *pushed, *args]) == 0
+    assert "dynamics: velocity error" in out and "plays the soft notes softly" not in out
+    struck = ["--controller", "planner:push_below_velocity=0"]
+    assert main(["play", "voiced-melody", "--out", str(tmp_path / "b"), *struck, *args]) == 0
     out = capsys.readouterr().out
-    assert "dynamics: velocity error" in out and "push_below_velocity=90 plays" not in out
+    assert "dynamics: velocity error" in out
+    assert "the default, 80, plays the soft notes softly" in out
     assert main(["play", "c-major-chords", "--out", str(tmp_path / "c"), *args]) == 0
     assert "dynamics:" not in capsys.readouterr().out

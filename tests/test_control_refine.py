@@ -323,3 +323,39 @@ def test_open_loop_batches_simulate_fewer_steps_on_a_passage():
         play(song, refiner, physics="fast", seed=0)
         steps[batch] = refiner.simulated_steps
     assert steps[1] < steps[0]
+
+
+def test_a_finger_pushing_a_soft_note_is_not_perturbed():
+    """On the crescendo (soft notes pushed by the planner's prediction), with a perturbation
+    made to win every step: wherever a finger pushes, its action is the planner's own, and
+    the other fingers' are perturbed."""
+    song = window(load_song("crescendo-scale"), 0.0, 2.0)
+    planner = IKPlanner()
+    proposals: list[np.ndarray] = []
+    propose = planner.act
+
+    def recording(observation=None):
+        proposals.append(propose(observation))
+        return proposals[-1]
+
+    planner.act = recording  # type: ignore[method-assign]
+    refiner = Refiner(planner, RefineOptions(candidates=1, sigma=0.3, horizon_steps=1))
+    # The planner's own look-ahead costs more than any perturbation's.
+    refiner._unperturbed = lambda *args: (1.0, np.ones(10))  # type: ignore[method-assign]
+    refiner._look_ahead = lambda *args: (0.0, np.zeros(10))  # type: ignore[method-assign]
+    env = make_env(song, refiner, physics="fast")
+    obs, _ = env.reset(seed=0)
+    refiner.reset(env, seed=0)
+    pushed_steps = 0
+    for _ in range(env.unwrapped.goal.num_frames):
+        first = len(proposals)
+        action = refiner.act(obs)
+        pushing = planner.pushing_action_dims()
+        proposal = proposals[first]
+        if pushing.size:
+            pushed_steps += 1
+            np.testing.assert_array_equal(action[pushing], proposal[pushing])
+            others = np.setdiff1d(refiner.dims, pushing)
+            assert not np.allclose(action[others], proposal[others])
+        obs, *_ = env.step(action)
+    assert pushed_steps >= 5

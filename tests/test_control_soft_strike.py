@@ -16,6 +16,7 @@ from pianist.control.planner.strikes import (
     plan_strikes,
     planned_angle,
 )
+from pianist.control.specs import PUSH_BELOW_VELOCITY, PlannerSpec, RefineSpec, SearchSpec
 from pianist.env.loudness import KEY_LEVER_M, speed_to_velocity, velocity_to_speed
 from pianist.eval.session import make_env, play
 from pianist.media.results import played_dynamics
@@ -23,6 +24,7 @@ from pianist.music import GoalFrames, load_song
 from pianist.music.pitch import NUM_KEYS
 
 PUSHED = PlannerConfig().with_fields(push_below_velocity=90)
+STRUCK = PlannerConfig().with_fields(push_below_velocity=0)
 C4, E4 = 39, 43  # key indices (white keys)
 
 
@@ -139,7 +141,7 @@ def test_pushed_notes_sound_near_the_velocity_asked_for(physics):
     pushed = score < PUSHED.strikes.push_below_velocity
     assert pushed.sum() >= 10
     assert np.median(np.abs(performed[pushed] - score[pushed])) <= 12
-    plain = play("crescendo-scale", IKPlanner(), physics=physics, seed=0)
+    plain = play("crescendo-scale", IKPlanner(STRUCK), physics=physics, seed=0)
     plain_pairs = played_dynamics(plain)[2]
     plain_error = np.median(
         [abs(p.velocity - s.velocity) for p, s in plain_pairs if s.velocity < 90]
@@ -150,11 +152,17 @@ def test_pushed_notes_sound_near_the_velocity_asked_for(physics):
     assert result.metrics["f1"] >= plain.metrics["f1"] - 0.01
 
 
+def test_pushes_are_the_default_and_the_specs_agree():
+    assert PlannerConfig().strikes.push_below_velocity == PUSH_BELOW_VELOCITY == 80
+    for spec in (PlannerSpec(), RefineSpec(), SearchSpec()):
+        assert spec.push_below_velocity == PUSH_BELOW_VELOCITY
+
+
 def test_a_song_of_one_velocity_plays_as_without_pushes():
     song = load_song("c-major-chords")
     assert len({note.velocity for note in song.notes}) == 1
     with_pushes = play(song, IKPlanner(PUSHED), physics="fast", seed=0)
-    without = play(song, IKPlanner(), physics="fast", seed=0)
+    without = play(song, IKPlanner(STRUCK), physics="fast", seed=0)
     np.testing.assert_array_equal(with_pushes.episode.actions, without.episode.actions)
     # The same song with one note softer is pushed, and plays otherwise.
     notes = list(song.notes)

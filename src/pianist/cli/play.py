@@ -14,6 +14,7 @@ import tyro
 from pianist.cli.common import CliError, SongArg, check_seed
 from pianist.cli.common import out as _out
 from pianist.control.registry import ControllerSpec, controller_help, parse_controller
+from pianist.control.specs import PUSH_BELOW_VELOCITY
 
 #: The help of --controller: every kind with its options, from the registry.
 CONTROLLER_HELP = (
@@ -205,7 +206,10 @@ def _dynamics_line(metrics: dict, spec: ControllerSpec) -> str:
         f"correlation {rho:.2f} over {metrics['velocity_matched_notes']} notes"
     )
     if getattr(spec, "push_below_velocity", None) == 0:
-        line += f" (--controller {spec.kind}:push_below_velocity=90 plays the soft notes softly)"
+        line += (
+            f" (push_below_velocity=0 strikes every note at full speed; the default, "
+            f"{PUSH_BELOW_VELOCITY}, plays the soft notes softly)"
+        )
     return line
 
 

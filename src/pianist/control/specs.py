@@ -20,6 +20,10 @@ if TYPE_CHECKING:
     from pianist.control.planner import IKPlanner
 
 
+#: The planner's default ``push_below_velocity`` (``StrikeConfig``'s).
+PUSH_BELOW_VELOCITY = 80
+
+
 @dataclass(frozen=True)
 class PlannerSpec(ControllerSpec):
     """The inverse-kinematics planner (:mod:`pianist.control.planner`)."""
@@ -27,11 +31,10 @@ class PlannerSpec(ControllerSpec):
     kind: ClassVar[str] = "planner"
     needs_fingering: ClassVar[bool] = True
 
-    push_below_velocity: int = 0
+    push_below_velocity: int = PUSH_BELOW_VELOCITY
     """Play the score's dynamics: notes softer than this MIDI velocity are pushed down at the
-    speed their velocity maps to (``StrikeConfig.push_below_velocity``; 90 plays the dynamics
-    suite's soft notes, at an F1 cost of ~0.03 that ``refine`` wins back; 0: every note
-    struck at full speed)."""
+    speed their velocity maps to (``StrikeConfig.push_below_velocity``; a song of one
+    velocity throughout plays the same either way; 0: every note struck at full speed)."""
 
     def __post_init__(self) -> None:
         _check_push(self.kind, self.push_below_velocity)
@@ -66,7 +69,7 @@ class RefineSpec(RefineOptions, ControllerSpec):
     kind: ClassVar[str] = "refine"
     needs_fingering: ClassVar[bool] = True
 
-    push_below_velocity: int = 0
+    push_below_velocity: int = PUSH_BELOW_VELOCITY
     """The planner's: notes softer than this MIDI velocity pushed (see ``planner``)."""
 
     def __post_init__(self) -> None:
@@ -91,7 +94,7 @@ class SearchSpec(SearchOptions, ControllerSpec):
 
     base: Literal["planner", "refine"] = "planner"
     """The controller searched over: the planner, or the refiner with its defaults."""
-    push_below_velocity: int = 0
+    push_below_velocity: int = PUSH_BELOW_VELOCITY
     """The planner's: notes softer than this MIDI velocity pushed (see ``planner``)."""
 
     def __post_init__(self) -> None:

@@ -597,6 +597,17 @@ class IKPlanner(BaseController):
         """(F,) the action dimensions of every finger joint (not the forearms or wrists)."""
         return np.concatenate([hand.finger_actuators for hand in self.hands])
 
+    def pushing_action_dims(self) -> np.ndarray:
+        """(k,) the action dimensions of the fingers pushing a soft note this step (their
+        commands chosen by :mod:`~pianist.control.planner.strike_prediction`), after
+        :meth:`act`."""
+        dims = [
+            hand.fingers[f].actuators
+            for hand, memory in zip(self.hands, self.memories, strict=True)
+            for f in np.flatnonzero(np.isfinite(memory.push_target))
+        ]
+        return np.concatenate(dims) if dims else np.zeros(0, dtype=np.int64)
+
     def act(self, observation: object = None) -> np.ndarray:
         cfg, handle, m, scratch = self.config, self.handle, self.model, self.scratch
         T = self.goal.num_frames
