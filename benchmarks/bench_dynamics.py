@@ -10,11 +10,14 @@ plays, seed 0), and from its ``metrics.json`` values:
   performed note and the score's note it matches (same key, onset within the tolerance of
   :mod:`pianist.media.dynamics`);
 - ``velocity rho``: the Spearman rank correlation of the two (1: the loud notes played
-  loudest; NaN where the score's notes all have one velocity).
+  loudest; NaN where the score's notes all have one velocity);
+- ``realtime``: simulated time over wall time of the episode, the controller's set-up
+  included (noisy on a shared machine).
 
 Issue 55's targets are rho >= 0.8 and mae <= 12 per piece, the F1 within 0.005 of the same
 controller without velocity control. The planner controls loudness with its pushed strikes
-(``--controller planner:push_below_velocity=90``; also ``refine:...`` and ``search:...``).
+(on by default; ``--controller planner:push_below_velocity=0`` strikes every note at full
+speed, the controller without velocity control; also ``refine:...`` and ``search:...``).
 
 Run: ``python benchmarks/bench_dynamics.py [--suite dynamics | --songs a,b]
 [--presets faithful,fast] [--controller SPEC] [--json out.json]``.
@@ -31,7 +34,7 @@ from pianist.media.results import played_dynamics
 
 from arguments import preset_list, song_list, song_table  # isort: skip  (beside this script)
 
-COLUMNS = ("f1", "velocity mae", "velocity rho")
+COLUMNS = ("f1", "velocity mae", "velocity rho", "realtime")
 
 
 def row(name: str, physics: str, spec: ControllerSpec) -> dict[str, float]:
@@ -47,6 +50,7 @@ def row(name: str, physics: str, spec: ControllerSpec) -> dict[str, float]:
         "f1": number("f1"),
         "velocity mae": number("velocity_mae"),
         "velocity rho": number("velocity_rank_correlation"),
+        "realtime": number("realtime_factor"),
     }
 
 

@@ -3,7 +3,7 @@ key sounds, and how late it sounds.
 
 A note softer than ``StrikeConfig.push_below_velocity`` is pushed
 (:mod:`pianist.control.planner.strikes`): its key is brought down along a planned descent at
-the speed its velocity maps to, the finger's depth fed back from the key's angle. This
+the speed its velocity maps to, each step's push predicted with the simulator. This
 script plays calibration songs whose notes alternate between a target velocity and 100 (a
 song of one velocity is never pushed), for each target and physics preset, and reports for
 the target's notes, white and black keys apart:
@@ -38,7 +38,8 @@ from arguments import preset_list  # isort: skip  (beside this script)
 
 SONGS = ("c-major-scale-both", "d-major-scale-both", "c-major-chords")
 LOUD = 100
-PUSHED = PlannerConfig().with_fields(push_below_velocity=90)
+PUSHED = PlannerConfig()  # the default pushes notes below velocity 80
+PLAIN = PlannerConfig().with_fields(push_below_velocity=0)
 
 
 def calibration_song(name: str, target: int) -> Song:
@@ -61,7 +62,7 @@ def measure(target: int, physics: str) -> dict[str, Any]:
         song = calibration_song(name, target)
         result = play(song, IKPlanner(PUSHED), physics=physics, seed=0)
         f1s.append(float(result.metrics["f1"]))
-        plain.append(float(play(song, IKPlanner(), physics=physics, seed=0).metrics["f1"]))
+        plain.append(float(play(song, IKPlanner(PLAIN), physics=physics, seed=0).metrics["f1"]))
         for performed, score in played_dynamics(result)[2]:
             if score.velocity != target:
                 continue
@@ -113,7 +114,8 @@ def main() -> None:
     if args.json:
         folder = os.path.dirname(os.path.abspath(args.json))
         with tempfile.NamedTemporaryFile("w", dir=folder, delete=False, suffix=".tmp") as f:
-            settings = {"songs": SONGS, "config": "push_below_velocity=90"}
+            below = PUSHED.strikes.push_below_velocity
+            settings = {"songs": SONGS, "config": f"push_below_velocity={below}"}
             json.dump({**settings, "rows": rows}, f, indent=1)
         os.replace(f.name, args.json)
 

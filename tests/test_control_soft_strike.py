@@ -4,7 +4,6 @@ step's push chosen by simulating the step ahead."""
 
 import dataclasses
 
-import mujoco
 import numpy as np
 import pytest
 
@@ -16,6 +15,7 @@ from pianist.control.planner.strikes import (
     plan_strikes,
     planned_angle,
 )
+from pianist.control.rollout_ahead import RolloutAhead
 from pianist.control.specs import PUSH_BELOW_VELOCITY, PlannerSpec, RefineSpec, SearchSpec
 from pianist.env.loudness import KEY_LEVER_M, speed_to_velocity, velocity_to_speed
 from pianist.eval.session import make_env, play
@@ -113,11 +113,12 @@ def test_the_prediction_is_the_step_the_environment_then_takes():
     hand = next(h for h in planner.hands if h.own_keys(goal)[handle.step_index, key])
     finger = hand.fingers[int(goal.fingers[handle.step_index, key]) - hand.finger_offset]
     direction = np.ones(finger.dof) / np.sqrt(finger.dof)  # flexing every joint: down
-    push = Push(finger.actuators, direction, int(planner.key_qpos[key]), 0.0)
+    push = Push(finger.actuators, direction, key, 0.0)
     ctrl = np.array(data.ctrl)
     state = data.qpos.copy(), data.qvel.copy(), data.time
     offsets = (-1.5, 0.0)
-    angles = predicted_angles(model, data, mujoco.MjData(model), ctrl, [push], offsets, 10)
+    rollouts = RolloutAhead(model, handle.config.substeps, planner.key_qpos, np.zeros(0, int))
+    angles = predicted_angles(rollouts, data, ctrl, [push], offsets)
     np.testing.assert_array_equal(data.qpos, state[0])
     np.testing.assert_array_equal(data.qvel, state[1])
     assert data.time == state[2]
@@ -126,7 +127,7 @@ def test_the_prediction_is_the_step_the_environment_then_takes():
     command[push.actuators] += offsets[0] * direction
     action = np.append(handle.ctrl_to_action(command), -1.0).astype(np.float32)
     env.step(action)
-    assert data.qpos[push.key_qpos] == pytest.approx(angles[0, 0], abs=1e-5)
+    assert data.qpos[planner.key_qpos[key]] == pytest.approx(angles[0, 0], abs=1e-5)
 
 
 @pytest.mark.parametrize("physics", ["fast", "faithful"])

@@ -78,10 +78,15 @@ class RolloutAhead:
             (N, H, 88) key angles in rad and (N, H, S, 3) site positions in m, after each
             control step.
         """
+        ctrl = action_to_ctrl(actions[..., :-1], self.model.actuator_ctrlrange)  # (N, H, nu)
+        return self.run_ctrl(start, ctrl)
+
+    def run_ctrl(self, start: mujoco.MjData, ctrl: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`run` from actuator commands ``ctrl`` (N, H, nu) instead of actions (each
+        within its actuator's range)."""
         m = self.model
-        N, H, _ = actions.shape
+        N, H, _ = ctrl.shape
         mujoco.mj_getState(m, start, self._state, _STATE)
-        ctrl = action_to_ctrl(actions[..., :-1], m.actuator_ctrlrange)  # (N, H, nu)
         control = np.repeat(ctrl, self.substeps, axis=1)  # held for each step's substeps
         states, _ = self._pool.rollout(
             m,
@@ -95,7 +100,7 @@ class RolloutAhead:
         keys = qpos[..., self.key_qpos]
         sites = np.empty((N, H, self.sites.size, 3))
         scratch = self._scratch
-        for n in range(N):
+        for n in range(N if self.sites.size else 0):
             for h in range(H):
                 scratch.qpos[:] = qpos[n, h]
                 mujoco.mj_kinematics(m, scratch)

@@ -66,6 +66,7 @@ from pianist.control.planner.rehearsal import Replay, f1_lost, rehearse
 from pianist.control.planner.strike_prediction import Push, apply_pushes
 from pianist.control.planner.strikes import plan_strikes
 from pianist.control.planner.targets import fingertip_targets
+from pianist.control.rollout_ahead import RolloutAhead
 from pianist.control.scoring import step_f1
 from pianist.env.handle import ControlHandle, control_handle
 from pianist.sim import constants as C
@@ -177,7 +178,6 @@ class IKPlanner(BaseController):
         self.handle = handle
         self.model: mujoco.MjModel = handle.model
         self.scratch = mujoco.MjData(self.model)
-        self.predict_work = mujoco.MjData(self.model)  # predicted pushes' simulated steps
         self.goal = goal
         self.dt = handle.control_timestep_s
         cfg, m = self.config, self.model
@@ -597,6 +597,16 @@ class IKPlanner(BaseController):
         """(F,) the action dimensions of every finger joint (not the forearms or wrists)."""
         return np.concatenate([hand.finger_actuators for hand in self.hands])
 
+    def _push_rollouts(self) -> RolloutAhead:
+        """The predicted pushes' simulator (:mod:`strike_prediction`), made on first use and
+        kept while the model and its substeps stay those of the environment acted on."""
+        handle, kept = self.handle, getattr(self, "_rollouts", None)
+        substeps = handle.config.substeps
+        if kept is None or kept.model is not handle.model or kept.substeps != substeps:
+            kept = RolloutAhead(handle.model, substeps, self.key_qpos, np.zeros(0, dtype=int))
+            self._rollouts = kept
+        return kept
+
     def pushing_action_dims(self) -> np.ndarray:
         """(k,) the action dimensions of the fingers pushing a soft note this step (their
         commands chosen by :mod:`~pianist.control.planner.strike_prediction`), after
@@ -673,19 +683,13 @@ class IKPlanner(BaseController):
                     Push(
                         hand.fingers[f].actuators,
                         direction,
-                        int(self.key_qpos[key]),
+                        key,
                         float(memory.push_target[f]),
                     )
                 )
         if pushes:
             ctrl = apply_pushes(
-                m,
-                handle.data,
-                self.predict_work,
-                ctrl,
-                pushes,
-                cfg.strikes.push_offsets_rad,
-                handle.config.substeps,
+                self._push_rollouts(), handle.data, ctrl, pushes, cfg.strikes.push_offsets_rad
             )
         action = np.empty(m.nu + 1)
         action[:-1] = handle.ctrl_to_action(ctrl)

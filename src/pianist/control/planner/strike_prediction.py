@@ -12,8 +12,9 @@ from them.
 
 Every pushing finger of both hands is tried at once: offset j is applied to all of them in
 the j-th simulated step, and each finger reads its own key's response (the fingers barely
-move each other's keys). A step costs one simulated control step per offset, and only steps
-with a push pay it.
+move each other's keys). A step costs one simulated control step per offset, all of them in
+one :func:`mujoco.rollout.rollout` call on two threads
+(:class:`~pianist.control.rollout_ahead.RolloutAhead`), and only steps with a push pay it.
 
 Inputs: the live ``MjData``, the step's commands (``ctrl``), and per pushing finger its
 actuators, descent direction, key and target angle. Output: the commands with the pushes'
@@ -28,6 +29,8 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from pianist.control.rollout_ahead import RolloutAhead
+
 
 @dataclass(frozen=True)
 class Push:
@@ -36,40 +39,33 @@ class Push:
     Attributes:
         actuators: (dof,) int, the finger's actuator indices into ``ctrl``.
         direction: (dof,) unit actuator-angle direction that lowers its fingertip.
-        key_qpos: the qpos address of its key's hinge.
+        key: its key (0-87).
         target_rad: the key's planned angle (rad, 0 up) at the end of this step.
     """
 
     actuators: np.ndarray
     direction: np.ndarray
-    key_qpos: int
+    key: int
     target_rad: float
 
 
 def predicted_angles(
-    model: mujoco.MjModel,
+    rollouts: RolloutAhead,
     data: mujoco.MjData,
-    work: mujoco.MjData,
     ctrl: np.ndarray,
     pushes: Sequence[Push],
     offsets: Sequence[float],
-    substeps: int,
 ) -> np.ndarray:
     """(len(offsets), len(pushes)) rad: each pushed key's angle at the end of a control step
-    simulated from ``data`` (left alone; ``work`` is overwritten) with every push offset by
-    ``offsets[j]`` rad along its direction in row j."""
-    low, high = model.actuator_ctrlrange[:, 0], model.actuator_ctrlrange[:, 1]
-    keys = np.array([p.key_qpos for p in pushes])
-    angles = np.empty((len(offsets), len(pushes)))
+    simulated from ``data`` (left alone) with every push offset by ``offsets[j]`` rad along
+    its direction in row j, the rows simulated at once on ``rollouts``' threads."""
+    low, high = rollouts.model.actuator_ctrlrange.T
+    commands = np.repeat(ctrl[None, None, :], len(offsets), axis=0)  # (J, 1, nu)
     for j, offset in enumerate(offsets):
-        mujoco.mj_copyData(work, model, data)
-        command = ctrl.copy()
         for push in pushes:
-            command[push.actuators] += offset * push.direction
-        work.ctrl[:] = np.minimum(np.maximum(command, low), high)
-        mujoco.mj_step(model, work, nstep=substeps)
-        angles[j] = work.qpos[keys]
-    return angles
+            commands[j, 0, push.actuators] += offset * push.direction
+    keys, _ = rollouts.run_ctrl(data, np.minimum(np.maximum(commands, low), high))
+    return keys[:, 0, [p.key for p in pushes]]
 
 
 def chosen_offsets(angles: np.ndarray, offsets: Sequence[float], targets: np.ndarray) -> np.ndarray:
@@ -102,20 +98,18 @@ def chosen_offsets(angles: np.ndarray, offsets: Sequence[float], targets: np.nda
 
 
 def apply_pushes(
-    model: mujoco.MjModel,
+    rollouts: RolloutAhead,
     data: mujoco.MjData,
-    work: mujoco.MjData,
     ctrl: np.ndarray,
     pushes: Sequence[Push],
     offsets: Sequence[float],
-    substeps: int,
 ) -> np.ndarray:
     """``ctrl`` (nu,) with each push's chosen offset applied along its direction (a new
     array; ``ctrl`` itself is left alone)."""
     out = ctrl.copy()
     if not pushes:
         return out
-    angles = predicted_angles(model, data, work, ctrl, pushes, offsets, substeps)
+    angles = predicted_angles(rollouts, data, ctrl, pushes, offsets)
     targets = np.array([p.target_rad for p in pushes])
     for push, offset in zip(pushes, chosen_offsets(angles, offsets, targets), strict=True):
         out[push.actuators] += offset * push.direction
