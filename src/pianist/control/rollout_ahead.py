@@ -86,15 +86,7 @@ class RolloutAhead:
         within its actuator's range)."""
         m = self.model
         N, H, _ = ctrl.shape
-        mujoco.mj_getState(m, start, self._state, _STATE)
-        control = np.repeat(ctrl, self.substeps, axis=1)  # held for each step's substeps
-        states, _ = self._pool.rollout(
-            m,
-            self._datas,
-            np.tile(self._state, (N, 1)),
-            control,
-            initial_warmstart=np.tile(start.qacc_warmstart, (N, 1)),
-        )
+        states = self._states(start, ctrl)
         ends = states[:, self.substeps - 1 :: self.substeps]  # (N, H, nstate)
         qpos = ends[..., self._qpos]
         keys = qpos[..., self.key_qpos]
@@ -106,3 +98,24 @@ class RolloutAhead:
                 mujoco.mj_kinematics(m, scratch)
                 sites[n, h] = scratch.site_xpos[self.sites]
         return keys, sites
+
+    def key_paths(self, start: mujoco.MjData, ctrl: np.ndarray) -> np.ndarray:
+        """(N, H * S, 88) rad: every key's angle after each substep of :meth:`run_ctrl`'s
+        rollouts (S substeps per control step)."""
+        return self._states(start, ctrl)[..., self._qpos][..., self.key_qpos]
+
+    def _states(self, start: mujoco.MjData, ctrl: np.ndarray) -> np.ndarray:
+        """(N, H * S, nstate) the full-physics state after every substep of ``ctrl`` (N, H, nu)
+        held for each control step, from ``start``."""
+        m = self.model
+        N = ctrl.shape[0]
+        mujoco.mj_getState(m, start, self._state, _STATE)
+        control = np.repeat(ctrl, self.substeps, axis=1)  # held for each step's substeps
+        states, _ = self._pool.rollout(
+            m,
+            self._datas,
+            np.tile(self._state, (N, 1)),
+            control,
+            initial_warmstart=np.tile(start.qacc_warmstart, (N, 1)),
+        )
+        return states

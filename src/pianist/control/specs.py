@@ -35,6 +35,10 @@ class PlannerSpec(ControllerSpec):
     """Play the score's dynamics: notes softer than this MIDI velocity are pushed down at the
     speed their velocity maps to (``StrikeConfig.push_below_velocity``; a song of one
     velocity throughout plays the same either way; 0: every note struck at full speed)."""
+    predict_strikes: bool = True
+    """Strike each note not pushed with the force whose strike, simulated two steps ahead,
+    sounds in the note's step nearest its velocity (``StrikeConfig.predict_strikes``; false:
+    faster, a little less F1)."""
 
     def __post_init__(self) -> None:
         _check_push(self.kind, self.push_below_velocity)
@@ -43,7 +47,7 @@ class PlannerSpec(ControllerSpec):
         return False  # the plan and its execution are deterministic
 
     def build(self) -> Controller:
-        return _planner(self.push_below_velocity)
+        return _planner(self.push_below_velocity, self.predict_strikes)
 
 
 def _check_push(kind: str, velocity: int) -> None:
@@ -54,11 +58,16 @@ def _check_push(kind: str, velocity: int) -> None:
         )
 
 
-def _planner(push_below_velocity: int) -> IKPlanner:
-    """The planner, pushing notes softer than ``push_below_velocity``."""
+def _planner(push_below_velocity: int, predict_strikes: bool) -> IKPlanner:
+    """The planner, pushing notes softer than ``push_below_velocity``, and predicting its
+    strikes or not."""
     from pianist.control.planner import IKPlanner, PlannerConfig
 
-    return IKPlanner(PlannerConfig().with_fields(push_below_velocity=push_below_velocity))
+    return IKPlanner(
+        PlannerConfig().with_fields(
+            push_below_velocity=push_below_velocity, predict_strikes=predict_strikes
+        )
+    )
 
 
 @dataclass(frozen=True)
@@ -71,6 +80,8 @@ class RefineSpec(RefineOptions, ControllerSpec):
 
     push_below_velocity: int = PUSH_BELOW_VELOCITY
     """The planner's: notes softer than this MIDI velocity pushed (see ``planner``)."""
+    predict_strikes: bool = True
+    """The planner's: strikes with a predicted force (see ``planner``)."""
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -79,7 +90,7 @@ class RefineSpec(RefineOptions, ControllerSpec):
     def build(self) -> Controller:
         from pianist.control.refine import Refiner
 
-        return Refiner(_planner(self.push_below_velocity), options=self)
+        return Refiner(_planner(self.push_below_velocity, self.predict_strikes), options=self)
 
 
 @dataclass(frozen=True)
@@ -96,6 +107,8 @@ class SearchSpec(SearchOptions, ControllerSpec):
     """The controller searched over: the planner, or the refiner with its defaults."""
     push_below_velocity: int = PUSH_BELOW_VELOCITY
     """The planner's: notes softer than this MIDI velocity pushed (see ``planner``)."""
+    predict_strikes: bool = True
+    """The planner's: strikes with a predicted force (see ``planner``)."""
 
     def __post_init__(self) -> None:
         if self.base not in ("planner", "refine"):
@@ -111,7 +124,7 @@ class SearchSpec(SearchOptions, ControllerSpec):
         from pianist.control.search import SegmentSearch
 
         options = SearchOptions(self.segment_steps, self.overlap_steps, self.variants)
-        planner = _planner(self.push_below_velocity)
+        planner = _planner(self.push_below_velocity, self.predict_strikes)
         return SegmentSearch(Refiner(planner) if self.base == "refine" else planner, options)
 
 
@@ -140,7 +153,9 @@ def refined(spec: ControllerSpec) -> ControllerSpec:
         ValueError: a kind that has no planner to refine.
     """
     if isinstance(spec, PlannerSpec):
-        return RefineSpec(push_below_velocity=spec.push_below_velocity)
+        return RefineSpec(
+            push_below_velocity=spec.push_below_velocity, predict_strikes=spec.predict_strikes
+        )
     if isinstance(spec, SearchSpec):
         return dataclasses.replace(spec, base="refine")
     if isinstance(spec, RefineSpec):

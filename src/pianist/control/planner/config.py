@@ -314,6 +314,16 @@ class StrikeConfig(_Group):
     push_offsets_rad: tuple[float, ...] = (-0.1, 0.0, 0.1, 0.2, 0.35, 0.5)
     """The push offsets tried at each step of a push (rad along the finger's descent
     direction from its breakaway posture), ascending: one simulated control step each."""
+    predict_strikes: bool = True
+    """Strike every note not pushed with the force, out of ``strike_offsets_rad``, whose
+    strike simulated two steps ahead sounds in the note's step nearest its velocity
+    (:mod:`strike_prediction`; in any song: the F1 gains where the strikes sound on time, at
+    the cost of the simulated steps). False: struck with the planner's own command."""
+    strike_offsets_rad: tuple[float, ...] = (-0.6, -0.4, -0.2, 0.0, 0.2, 0.4)
+    """The offsets tried at the first step of a louder note's strike (rad along the finger's
+    descent direction from its press), as many as ``push_offsets_rad`` (they are simulated
+    together): how far a strike's key has gone when the next step starts sets how loud it
+    reads, ~80-110 from one finger's strikes."""
     push_rest_m: float = -0.008
     """Height above the key top a finger waiting for its push is sent: below it, as the
     finger's servo falls ~8 mm short of a target above the keys, so that the finger rests on
@@ -330,6 +340,11 @@ class StrikeConfig(_Group):
         if len(offsets) < 2 or any(b <= a for a, b in zip(offsets, offsets[1:], strict=False)):
             raise ValueError(
                 f"push_offsets_rad must be two or more ascending offsets, not {offsets}"
+            )
+        if len(self.strike_offsets_rad) != len(offsets):
+            raise ValueError(
+                f"strike_offsets_rad must have as many offsets as push_offsets_rad "
+                f"({len(offsets)}), not {len(self.strike_offsets_rad)}"
             )
 
 

@@ -63,7 +63,7 @@ from pianist.control.planner.ik import descent_directions, finger_controls, solv
 from pianist.control.planner.plans import PLANS, CachedPlan, Plan, PlanCache
 from pianist.control.planner.postures import HandPose, hand_poses, set_wrist
 from pianist.control.planner.rehearsal import Replay, f1_lost, rehearse
-from pianist.control.planner.strike_prediction import Push, apply_pushes
+from pianist.control.planner.strike_prediction import Push, Strike, apply_predictions
 from pianist.control.planner.strikes import plan_strikes
 from pianist.control.planner.targets import fingertip_targets
 from pianist.control.rollout_ahead import RolloutAhead
@@ -201,6 +201,7 @@ class IKPlanner(BaseController):
             cfg.strikes.push_below_velocity,
             cfg.strikes.push_lag_frames,
             cfg.strikes.push_speed_scale,
+            cfg.strikes.predict_strikes,
         )
         self.key_qpos = handle.scene.key_qpos
         self.key_threshold = (
@@ -614,7 +615,7 @@ class IKPlanner(BaseController):
         dims = [
             hand.fingers[f].actuators
             for hand, memory in zip(self.hands, self.memories, strict=True)
-            for f in np.flatnonzero(np.isfinite(memory.push_target))
+            for f in np.flatnonzero(np.isfinite(memory.push_target) | (memory.strike_key >= 0))
         ]
         return np.concatenate(dims) if dims else np.zeros(0, dtype=np.int64)
 
@@ -647,6 +648,7 @@ class IKPlanner(BaseController):
             scratch.qpos[hand.tx_qpos] += cfg.forearm.forearm_lead_s * handle.data.qvel[hand.tx_dof]
         mujoco.mj_kinematics(m, scratch)
         pushes: list[Push] = []
+        strikes: list[Strike] = []
         for i, hand in enumerate(self.hands):
             (pose_index, pose), hand_cfg = poses[i], settings[i]
             targets, active, memory = fingertip_targets(
@@ -674,27 +676,46 @@ class IKPlanner(BaseController):
                 hand_cfg,
             )
             ctrl[hand.finger_actuators] = finger_controls(hand, angles)
-            pushing = np.flatnonzero(np.isfinite(memory.push_target)).tolist()
-            for f, direction in zip(
-                pushing, descent_directions(m, scratch, hand, pushing), strict=True
-            ):
-                key = int(memory.push_key[f])
-                pushes.append(
-                    Push(
-                        hand.fingers[f].actuators,
-                        direction,
-                        key,
-                        float(memory.push_target[f]),
-                    )
-                )
-        if pushes:
-            ctrl = apply_pushes(
-                self._push_rollouts(), handle.data, ctrl, pushes, cfg.strikes.push_offsets_rad
+            hand_pushes, hand_strikes = _predicted(m, scratch, hand, memory, self.goal, t)
+            pushes += hand_pushes
+            strikes += hand_strikes
+        if pushes or strikes:
+            ctrl = apply_predictions(
+                self._push_rollouts(),
+                handle.data,
+                ctrl,
+                pushes,
+                strikes,
+                cfg.strikes.push_offsets_rad,
+                cfg.strikes.strike_offsets_rad,
+                self.dt,
             )
         action = np.empty(m.nu + 1)
         action[:-1] = handle.ctrl_to_action(ctrl)
         action[-1] = 1.0 if self.goal.sustain[press_frame] else -1.0
         return action.astype(np.float32)
+
+
+def _predicted(
+    m, scratch, hand: Hand, memory: FingerMemory, goal, now: int
+) -> tuple[list[Push], list[Strike]]:
+    """The hand's fingers whose commands this step are chosen by prediction
+    (:mod:`~pianist.control.planner.strike_prediction`): those pushing a soft note toward
+    its key's planned angle, and those starting to strike a louder one; ``scratch`` holds
+    the hand's solved posture."""
+    pushing = np.flatnonzero(np.isfinite(memory.push_target)).tolist()
+    striking = np.flatnonzero(memory.strike_key >= 0).tolist()
+    directions = descent_directions(m, scratch, hand, pushing + striking)
+    pushes = [
+        Push(hand.fingers[f].actuators, d, int(memory.push_key[f]), float(memory.push_target[f]))
+        for f, d in zip(pushing, directions, strict=False)
+    ]
+    strikes = []
+    for f, d in zip(striking, directions[len(pushing) :], strict=True):
+        key, frame = int(memory.strike_key[f]), int(memory.strike_frame[f])
+        velocity = int(goal.velocities[frame, key])
+        strikes.append(Strike(hand.fingers[f].actuators, d, key, velocity, frame - now))
+    return pushes, strikes
 
 
 def _kept(course: HandPlan) -> np.ndarray:

@@ -183,6 +183,11 @@ class FingerMemory:
     """bool: which fingers had a target this step (the others took their lifted posture)."""
     push_key: np.ndarray = field(default_factory=_none_int)
     """int: the key of the soft note a finger pushed last (-1: none, see :mod:`strikes`)."""
+    strike_key: np.ndarray = field(default_factory=_none_int)
+    """int: the key a finger starts to strike this step, a note whose strike is predicted
+    (-1: none, :mod:`strike_prediction`)."""
+    strike_frame: np.ndarray = field(default_factory=_none_int)
+    """int: the frame that note is due at."""
     push_target: np.ndarray = field(default_factory=lambda: np.full(FINGERS_PER_HAND, np.nan))
     """rad: the angle a predicted push aims its key at by this step's end (NaN: no predicted
     push this step, :mod:`strike_prediction`)."""

@@ -21,8 +21,13 @@ descent of its key:
    ends nearest the planned angle. Before its push the finger rests on the key; once the
    key has sounded it holds it at the full press depth like any other finger.
 
-Louder notes than ``StrikeConfig.push_below_velocity`` are struck at full speed, and so is
-every note of a song of one velocity throughout (it plays as without pushes).
+Louder notes than ``StrikeConfig.push_below_velocity`` are struck, and so are the notes a
+push could not start early enough for (the episode's first steps, while the hands arrive).
+How loud a strike reads depends on how far its key has gone when the next control step
+starts, and whether it sounds in its own step on how hard it is struck, so the first step
+of each strike is predicted too (``predict_strikes``, :mod:`strike_prediction`): its force
+is chosen to sound in the note's step, nearest its velocity. No note of a song of one
+velocity throughout is pushed.
 
 Inputs: the goal frames (keys and velocities), each key's lever and angles, the control step.
 Output: a :class:`StrikePlan`, (T, 88) arrays read by the fingertip targets (:mod:`targets`).
@@ -57,11 +62,15 @@ class StrikePlan:
         sound: (T, 88) int, the step at whose end the key should reach the angle where it
             sounds (meaningful where ``rate`` is not 0).
         start: (T, 88) int, the first step of the push.
+        predicted: (T, 88) bool, notes struck with the force whose predicted strike sounds
+            in their step nearest their velocity (:mod:`strike_prediction`): with
+            ``predict_strikes``, every due note not pushed.
     """
 
     rate: np.ndarray
     sound: np.ndarray
     start: np.ndarray
+    predicted: np.ndarray
 
     @property
     def pushed(self) -> bool:
@@ -74,6 +83,7 @@ def plan_strikes(
     push_below: int,
     lag_frames: int,
     speed_scale: float = 1.0,
+    predict_strikes: bool = False,
 ) -> StrikePlan:
     """The planned descent of every due note's key from its MIDI velocity.
 
@@ -85,6 +95,8 @@ def plan_strikes(
         lag_frames: frames before its note's frame a key should sound (the servo's lag).
         speed_scale: the key speeds asked for, as a share of those the velocities map to (a
             calibration of what the execution achieves).
+        predict_strikes: whether the notes not pushed are struck with a predicted force
+            (:mod:`strike_prediction`), in any song.
     Returns:
         The :class:`StrikePlan`.
     """
@@ -94,6 +106,7 @@ def plan_strikes(
     # The frame each due key's note began: the last start at or before it.
     onset = np.maximum.accumulate(np.where(starts, np.arange(T)[:, None], -1), axis=0)
     rate = np.zeros(keys.shape)
+    predicted = np.zeros(keys.shape, dtype=bool)
     velocities = goal.velocities[keys]
     if push_below > 0 and velocities.size and velocities.min() != velocities.max():
         pushed = keys & (goal.velocities < push_below)
@@ -108,7 +121,11 @@ def plan_strikes(
     # episode's first steps) is struck instead: it could not rest on its key first.
     early = start < FIRST_PUSH_STEP
     rate[early & (rate > 0)] = 0.0
-    return StrikePlan(rate=rate, sound=sound, start=np.where(rate > 0, start, sound))
+    if predict_strikes:
+        predicted = keys & (rate == 0)
+    return StrikePlan(
+        rate=rate, sound=sound, start=np.where(rate > 0, start, sound), predicted=predicted
+    )
 
 
 def planned_angle(plan: StrikePlan, frame: int, key: int, step: int) -> float:

@@ -81,6 +81,8 @@ def fingertip_targets(
     active = np.zeros(FINGERS_PER_HAND, dtype=bool)
     mem.pressing = np.zeros(FINGERS_PER_HAND, dtype=bool)
     mem.push_target = np.full(FINGERS_PER_HAND, np.nan)
+    mem.strike_key = np.full(FINGERS_PER_HAND, -1)
+    mem.strike_frame = np.full(FINGERS_PER_HAND, -1)
     let_up = mem.state == FingerState.RESTRIKING  # last step's states
     mem.state = np.full(FINGERS_PER_HAND, FingerState.LIFTED, dtype=np.int8)
     if plan.free[now]:
@@ -157,6 +159,9 @@ def fingertip_targets(
             ):
                 extra = cfg.keys.thumb_extra_depth_m if finger == 0 else 0.0
                 targets[finger, 2] = top - planner.key_depth[key] - extra
+                if planner.strikes.predicted[frame, key] and not key_down[key]:
+                    # A louder note's strike, its force chosen by prediction.
+                    mem.strike_key[finger], mem.strike_frame[finger] = key, frame
                 if planner.strikes.rate[frame, key] and not key_down[key]:
                     # A pushed note not sounded yet: its own depth (strikes.py).
                     targets[finger, 2] = _push(planner, hand, mem, frame, int(key), now, cfg)
