@@ -326,9 +326,9 @@ def test_open_loop_batches_simulate_fewer_steps_on_a_passage():
 
 
 def test_a_finger_pushing_a_soft_note_is_not_perturbed():
-    """On the crescendo (soft notes pushed by the planner's prediction), with a perturbation
-    made to win every step: wherever a finger pushes, its action is the planner's own, and
-    the other fingers' are perturbed."""
+    """On the crescendo (soft notes pushed and loud ones struck by the planner's prediction),
+    with a perturbation made to win every step: wherever a finger's command was predicted,
+    its action is the planner's own, and the other fingers' are perturbed."""
     song = window(load_song("crescendo-scale"), 0.0, 2.0)
     planner = IKPlanner()
     proposals: list[np.ndarray] = []
@@ -350,7 +350,7 @@ def test_a_finger_pushing_a_soft_note_is_not_perturbed():
     for _ in range(env.unwrapped.goal.num_frames):
         first = len(proposals)
         action = refiner.act(obs)
-        pushing = planner.pushing_action_dims()
+        pushing = planner.predicted_action_dims()
         proposal = proposals[first]
         if pushing.size:
             pushed_steps += 1

@@ -177,9 +177,9 @@ class Refiner(BaseController):
             offsets[1:, self.arm_dims] = arm
         if o.keep_previous and self._previous is not None:
             offsets[1] = self._previous
-        # A finger pushing a soft note has its command chosen for the key's speed by the
-        # planner's own prediction of the step; a perturbation would undo it.
-        offsets[:, self.planner.pushing_action_dims()] = 0.0
+        # A finger pushing a soft note or starting a strike has its command chosen by the
+        # planner's own prediction of the steps ahead; a perturbation would undo it.
+        offsets[:, self.planner.predicted_action_dims()] = 0.0
         costs: list[float] = []
         finger_costs: list[np.ndarray] = []
         for index, offset in enumerate(offsets):

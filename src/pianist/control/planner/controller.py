@@ -598,9 +598,10 @@ class IKPlanner(BaseController):
         """(F,) the action dimensions of every finger joint (not the forearms or wrists)."""
         return np.concatenate([hand.finger_actuators for hand in self.hands])
 
-    def _push_rollouts(self) -> RolloutAhead:
-        """The predicted pushes' simulator (:mod:`strike_prediction`), made on first use and
-        kept while the model and its substeps stay those of the environment acted on."""
+    def _prediction_rollouts(self) -> RolloutAhead:
+        """The simulator of the predicted pushes and strikes (:mod:`strike_prediction`), made
+        on first use and kept while the model and its substeps stay those of the environment
+        acted on."""
         handle, kept = self.handle, getattr(self, "_rollouts", None)
         substeps = handle.config.substeps
         if kept is None or kept.model is not handle.model or kept.substeps != substeps:
@@ -608,10 +609,10 @@ class IKPlanner(BaseController):
             self._rollouts = kept
         return kept
 
-    def pushing_action_dims(self) -> np.ndarray:
-        """(k,) the action dimensions of the fingers pushing a soft note this step (their
-        commands chosen by :mod:`~pianist.control.planner.strike_prediction`), after
-        :meth:`act`."""
+    def predicted_action_dims(self) -> np.ndarray:
+        """(k,) the action dimensions of the fingers whose commands this step were chosen by
+        :mod:`~pianist.control.planner.strike_prediction` (pushing a soft note, or starting
+        a strike), after :meth:`act`."""
         dims = [
             hand.fingers[f].actuators
             for hand, memory in zip(self.hands, self.memories, strict=True)
@@ -681,7 +682,7 @@ class IKPlanner(BaseController):
             strikes += hand_strikes
         if pushes or strikes:
             ctrl = apply_predictions(
-                self._push_rollouts(),
+                self._prediction_rollouts(),
                 handle.data,
                 ctrl,
                 pushes,
@@ -705,6 +706,8 @@ def _predicted(
     the hand's solved posture."""
     pushing = np.flatnonzero(np.isfinite(memory.push_target)).tolist()
     striking = np.flatnonzero(memory.strike_key >= 0).tolist()
+    if not pushing and not striking:
+        return [], []
     directions = descent_directions(m, scratch, hand, pushing + striking)
     pushes = [
         Push(hand.fingers[f].actuators, d, int(memory.push_key[f]), float(memory.push_target[f]))

@@ -138,7 +138,7 @@ def chosen_offsets(angles: np.ndarray, offsets: Sequence[float], targets: np.nda
     """(P,) rad: per push, the offset whose predicted angle meets its target.
 
     Args:
-        angles: (J, P) the predicted angles (:func:`predicted_angles`).
+        angles: (J, P) each pushed key's predicted angle at the step's end, per offset.
         offsets: (J,) ascending offsets tried.
         targets: (P,) target angles.
     Returns:
@@ -177,9 +177,9 @@ def apply_predictions(
     direction (a new array; ``ctrl`` itself is left alone).
 
     Offset j of every push and every strike is simulated in row j (``push_offsets`` and
-    ``strike_offsets`` have one length): one control step ahead, and a second with the
-    commands of this one unchanged when there are strikes (a strike sounds in the step after
-    the one it starts in)."""
+    ``strike_offsets`` have one length): one control step ahead, and when there are strikes a
+    second with ``ctrl`` itself, no offset (a strike sounds in the step after the one it
+    starts in; one due later than that keeps the planner's command)."""
     out = ctrl.copy()
     if not pushes and not strikes:
         return out

@@ -45,8 +45,8 @@ from pianist.sim import constants as C
 
 #: (88,) rad: the angle at which each key sounds (its activation threshold).
 SOUND_ANGLE_RAD = C.KEY_MAX_ANGLE_RAD - C.KEY_ACTIVATION_THRESHOLD_RAD
-#: A predicted push aims its key this share of a step's planned rise past the angle where it
-#: sounds once it is due, so that it sounds in that step and not just after it.
+#: A predicted push aims its key this share of a step's planned rise above its planned line,
+#: so that it crosses the angle where it sounds within its step and not just after it.
 PUSH_SOUND_MARGIN = 0.3
 #: The first step a push may start at: before it the hands are still arriving at the keys.
 FIRST_PUSH_STEP = 2

@@ -160,7 +160,7 @@ def fingertip_targets(
                 extra = cfg.keys.thumb_extra_depth_m if finger == 0 else 0.0
                 targets[finger, 2] = top - planner.key_depth[key] - extra
                 if planner.strikes.predicted[frame, key] and not key_down[key]:
-                    # A louder note's strike, its force chosen by prediction.
+                    # A struck note (not pushed): its force is chosen by prediction.
                     mem.strike_key[finger], mem.strike_frame[finger] = key, frame
                 if planner.strikes.rate[frame, key] and not key_down[key]:
                     # A pushed note not sounded yet: its own depth (strikes.py).
