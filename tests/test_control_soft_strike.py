@@ -202,11 +202,24 @@ def test_pushed_notes_sound_near_the_velocity_asked_for(physics):
 
 def test_pushes_are_the_default_and_the_specs_agree():
     assert PlannerConfig().strikes.push_below_velocity == PUSH_BELOW_VELOCITY == 80
-    assert PlannerConfig().strikes.predict_strikes
+    assert PlannerConfig().strikes.predict_strikes == "dynamics"
     for spec in (PlannerSpec(), RefineSpec(), SearchSpec()):
-        assert spec.push_below_velocity == PUSH_BELOW_VELOCITY and spec.predict_strikes
-    planner = PlannerSpec(predict_strikes=False).build()
-    assert not planner.config.strikes.predict_strikes
+        assert spec.push_below_velocity == PUSH_BELOW_VELOCITY
+        assert spec.predict_strikes == "dynamics"
+    planner = PlannerSpec(predict_strikes="never").build()
+    assert planner.config.strikes.predict_strikes == "never"
+    with pytest.raises(ValueError, match="predict_strikes"):
+        PlannerConfig().with_fields(predict_strikes="sometimes")
+
+
+def test_strikes_are_predicted_where_the_song_has_dynamics_or_always():
+    mixed = _goal({C4: [(10, 14, 40)], E4: [(10, 14, 100)]})
+    same = _goal({C4: [(10, 14, 80)], E4: [(10, 14, 80)]})
+    assert plan_strikes(mixed, 90, 0, predict_strikes="dynamics").predicted[10:15, E4].all()
+    assert not plan_strikes(mixed, 90, 0, predict_strikes="dynamics").predicted[:, C4].any()
+    assert not plan_strikes(same, 90, 0, predict_strikes="dynamics").predicted.any()
+    assert plan_strikes(same, 90, 0, predict_strikes="always").predicted[10:15, C4].all()
+    assert not plan_strikes(mixed, 90, 0, predict_strikes="never").predicted.any()
 
 
 @pytest.mark.parametrize("physics", ["fast", "faithful"])
@@ -222,7 +235,7 @@ def test_predicted_strikes_sound_a_loud_bass_near_its_velocity(physics):
 
     predicted = bass(PlannerConfig())
     assert abs(predicted - 105) <= 10
-    assert bass(PlannerConfig().with_fields(predict_strikes=False)) < predicted - 5
+    assert bass(PlannerConfig().with_fields(predict_strikes="never")) < predicted - 5
 
 
 def test_a_song_of_one_velocity_plays_as_without_pushes():

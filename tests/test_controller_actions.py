@@ -1,8 +1,9 @@
 """The controllers' actions, bit for bit, against a recording made before the controller
 layer was restructured (issue 53): the planner, refine, search and MPC on two debug songs and
-the openings of two open-etude-12 pieces, fast physics. Since strikes are predicted
-(``predict_strikes``, on by default) the default cases are recorded anew, and the cases with
-``predict_strikes=false`` keep the actions recorded before it.
+the openings of two open-etude-12 pieces, fast physics. Since strikes are predicted in songs
+whose velocities differ (``predict_strikes``, "dynamics" by default) the Maple Leaf Rag's
+default cases (velocities 80 and 85) are recorded anew, and the cases with
+``predict_strikes=never`` keep the actions recorded before it.
 
 The recording is ``tests/data/controller_actions.npz``; ``python tests/test_controller_actions.py``
 writes it again (only when the controllers are meant to play differently). Bit-for-bit holds
@@ -43,18 +44,18 @@ CASES: tuple[tuple[str, float, str], ...] = (
     ("chopin-mazurka-op6-no2", 1.0, "mpc:num_samples=6,iterations=2"),
     ("joplin-maple-leaf-rag", 1.0, "mpc:num_samples=6,iterations=2"),
     # Strikes with the planner's own command, as recorded before strikes were predicted.
-    ("twinkle-twinkle", 4.0, "planner:predict_strikes=false"),
-    ("c-major-chords", 4.0, "planner:predict_strikes=false"),
-    ("chopin-mazurka-op6-no2", 4.0, "planner:predict_strikes=false"),
-    ("joplin-maple-leaf-rag", 4.0, "planner:predict_strikes=false"),
-    ("c-major-chords", 2.0, "refine:predict_strikes=false"),
-    ("joplin-maple-leaf-rag", 2.0, "refine:predict_strikes=false"),
-    ("twinkle-twinkle", 2.0, "refine:open_loop=true,candidates=4,predict_strikes=false"),
-    ("chopin-mazurka-op6-no2", 3.0, "search:predict_strikes=false"),
+    ("twinkle-twinkle", 4.0, "planner:predict_strikes=never"),
+    ("c-major-chords", 4.0, "planner:predict_strikes=never"),
+    ("chopin-mazurka-op6-no2", 4.0, "planner:predict_strikes=never"),
+    ("joplin-maple-leaf-rag", 4.0, "planner:predict_strikes=never"),
+    ("c-major-chords", 2.0, "refine:predict_strikes=never"),
+    ("joplin-maple-leaf-rag", 2.0, "refine:predict_strikes=never"),
+    ("twinkle-twinkle", 2.0, "refine:open_loop=true,candidates=4,predict_strikes=never"),
+    ("chopin-mazurka-op6-no2", 3.0, "search:predict_strikes=never"),
     (
         "c-major-chords",
         1.5,
-        "search:refine,segment_steps=10,variants=plain+stiff-wrist,predict_strikes=false",
+        "search:refine,segment_steps=10,variants=plain+stiff-wrist,predict_strikes=never",
     ),
 )
 

@@ -35,10 +35,10 @@ class PlannerSpec(ControllerSpec):
     """Play the score's dynamics: notes softer than this MIDI velocity are pushed down at the
     speed their velocity maps to (``StrikeConfig.push_below_velocity``; a song of one
     velocity throughout plays the same either way; 0: every note struck at full speed)."""
-    predict_strikes: bool = True
-    """Strike each note not pushed with the force whose strike, simulated two steps ahead,
-    sounds in the note's step nearest its velocity (``StrikeConfig.predict_strikes``; false:
-    faster, a little less F1)."""
+    predict_strikes: Literal["dynamics", "always", "never"] = "dynamics"
+    """Where each note not pushed is struck with the force whose strike, simulated two steps
+    ahead, sounds in the note's step nearest its velocity (``StrikeConfig.predict_strikes``):
+    in songs whose velocities differ, in every song (more F1, ~2.3x slower), or never."""
 
     def __post_init__(self) -> None:
         _check_push(self.kind, self.push_below_velocity)
@@ -58,7 +58,7 @@ def _check_push(kind: str, velocity: int) -> None:
         )
 
 
-def _planner(push_below_velocity: int, predict_strikes: bool) -> IKPlanner:
+def _planner(push_below_velocity: int, predict_strikes: str) -> IKPlanner:
     """The planner, pushing notes softer than ``push_below_velocity``, and predicting its
     strikes or not."""
     from pianist.control.planner import IKPlanner, PlannerConfig
@@ -80,8 +80,8 @@ class RefineSpec(RefineOptions, ControllerSpec):
 
     push_below_velocity: int = PUSH_BELOW_VELOCITY
     """The planner's: notes softer than this MIDI velocity pushed (see ``planner``)."""
-    predict_strikes: bool = True
-    """The planner's: strikes with a predicted force (see ``planner``)."""
+    predict_strikes: Literal["dynamics", "always", "never"] = "dynamics"
+    """The planner's: where strikes have a predicted force (see ``planner``)."""
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -107,8 +107,8 @@ class SearchSpec(SearchOptions, ControllerSpec):
     """The controller searched over: the planner, or the refiner with its defaults."""
     push_below_velocity: int = PUSH_BELOW_VELOCITY
     """The planner's: notes softer than this MIDI velocity pushed (see ``planner``)."""
-    predict_strikes: bool = True
-    """The planner's: strikes with a predicted force (see ``planner``)."""
+    predict_strikes: Literal["dynamics", "always", "never"] = "dynamics"
+    """The planner's: where strikes have a predicted force (see ``planner``)."""
 
     def __post_init__(self) -> None:
         if self.base not in ("planner", "refine"):

@@ -64,7 +64,7 @@ class StrikePlan:
         start: (T, 88) int, the first step of the push.
         predicted: (T, 88) bool, notes struck with the force whose predicted strike sounds
             in their step nearest their velocity (:mod:`strike_prediction`): with
-            ``predict_strikes``, every due note not pushed.
+            ``predict_strikes`` (in its songs), every due note not pushed.
     """
 
     rate: np.ndarray
@@ -83,7 +83,7 @@ def plan_strikes(
     push_below: int,
     lag_frames: int,
     speed_scale: float = 1.0,
-    predict_strikes: bool = False,
+    predict_strikes: str = "never",
 ) -> StrikePlan:
     """The planned descent of every due note's key from its MIDI velocity.
 
@@ -95,8 +95,9 @@ def plan_strikes(
         lag_frames: frames before its note's frame a key should sound (the servo's lag).
         speed_scale: the key speeds asked for, as a share of those the velocities map to (a
             calibration of what the execution achieves).
-        predict_strikes: whether the notes not pushed are struck with a predicted force
-            (:mod:`strike_prediction`), in any song.
+        predict_strikes: where the notes not pushed are struck with a predicted force
+            (:mod:`strike_prediction`): ``"dynamics"`` in a song whose notes' velocities
+            differ, ``"always"`` in any song, ``"never"``.
     Returns:
         The :class:`StrikePlan`.
     """
@@ -121,7 +122,8 @@ def plan_strikes(
     # episode's first steps) is struck instead: it could not rest on its key first.
     early = start < FIRST_PUSH_STEP
     rate[early & (rate > 0)] = 0.0
-    if predict_strikes:
+    varied = bool(velocities.size) and velocities.min() != velocities.max()
+    if predict_strikes == "always" or (predict_strikes == "dynamics" and varied):
         predicted = keys & (rate == 0)
     return StrikePlan(
         rate=rate, sound=sound, start=np.where(rate > 0, start, sound), predicted=predicted
