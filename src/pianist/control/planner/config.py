@@ -296,9 +296,9 @@ class StrikeConfig(_Group):
     """Notes softer than this MIDI velocity are *pushed* (:mod:`strikes`): their key is
     brought down along a planned descent at the speed their velocity maps to, each step's
     push chosen by predicting the key's angle with the simulator (:mod:`strike_prediction`).
-    0: none; in a song of one velocity throughout none is pushed. Louder notes are struck at
-    the servo's full speed, which sounds ~80-95: 80 pushes only the notes a strike would
-    play too loud (pushing the Maple Leaf Rag's 80s and 85s cost 0.06 of F1 for nothing)."""
+    0: none; in a song of one velocity throughout none is pushed. Louder notes are struck
+    (``predict_strikes``): a strike from above sounds ~80-95 at the least, so pushing notes
+    of 80 or more gains no loudness and costs F1."""
     push_speed_scale: float = 1.0
     """The key speeds a push plans, as a share of those the velocities map to (its
     calibration, ``benchmarks/calibrate_strikes.py``)."""
@@ -318,11 +318,11 @@ class StrikeConfig(_Group):
     """Where every note not pushed is struck with the force, out of ``strike_offsets_rad``,
     whose strike simulated two steps ahead sounds in the note's step nearest its velocity
     (:mod:`strike_prediction`): ``"dynamics"``, in a song whose notes' velocities differ (a
-    song of one velocity plays as without); ``"always"``, in any song (open-etude-12 0.828
-    against 0.807 / 0.815 faithful / fast, at ~2.3x the time); ``"never"``, struck with the
+    song of one velocity plays as without); ``"always"``, in any song (the strikes that then
+    sound on time add F1, at about twice the planner's time); ``"never"``, struck with the
     planner's own command."""
     strike_offsets_rad: tuple[float, ...] = (-0.6, -0.4, -0.2, 0.0, 0.2, 0.4)
-    """The offsets tried at the first step of a louder note's strike (rad along the finger's
+    """The offsets tried at the first step of a strike (rad along the finger's
     descent direction from its press), as many as ``push_offsets_rad`` (they are simulated
     together): how far a strike's key has gone when the next step starts sets how loud it
     reads, ~80-110 from one finger's strikes."""
