@@ -45,37 +45,34 @@ from pianist.env.loudness import speed_to_velocity, strike_speeds
 
 
 @dataclass(frozen=True)
-class Push:
-    """One finger pushing its key this step.
+class PredictedFinger:
+    """A finger whose command this step is chosen by prediction.
 
     Attributes:
         actuators: (dof,) int, the finger's actuator indices into ``ctrl``.
         direction: (dof,) unit actuator-angle direction that lowers its fingertip.
         key: its key (0-87).
-        target_rad: the key's planned angle (rad, 0 up) at the end of this step.
     """
 
     actuators: np.ndarray
     direction: np.ndarray
     key: int
+
+
+@dataclass(frozen=True)
+class Push(PredictedFinger):
+    """A finger pushing its key this step; ``target_rad``: the key's planned angle (rad, 0
+    up) at the end of this step."""
+
     target_rad: float
 
 
 @dataclass(frozen=True)
-class Strike:
-    """One finger starting to strike a louder note's key this step.
+class Strike(PredictedFinger):
+    """A finger starting to strike its key this step; ``velocity``: the note's MIDI
+    velocity; ``sound_step``: the step, counted from this one (0), in which the key should
+    sound."""
 
-    Attributes:
-        actuators: (dof,) int, the finger's actuator indices into ``ctrl``.
-        direction: (dof,) unit actuator-angle direction that lowers its fingertip.
-        key: its key (0-87).
-        velocity: the note's MIDI velocity.
-        sound_step: the step, counted from this one (0), in which the key should sound.
-    """
-
-    actuators: np.ndarray
-    direction: np.ndarray
-    key: int
     velocity: int
     sound_step: int
 
